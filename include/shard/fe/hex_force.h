@@ -1,0 +1,157 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+/**
+ * @file hex_force.h
+ * @brief Internal force of the active hexahedra: uniform-strain (one-point, mean-dilatation)
+ *        element with Flanagan-Belytschko stiffness hourglass control and a Hughes-Winget
+ *        objective stress update. Subsection `D - Finite elements`.
+ * @ingroup fe
+ */
+#pragma once
+
+#include <shard/base/parameters.h>
+#include <shard/materials/material_library.h>
+#include <shard/mesh/discretization.h>
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace shard::fe
+{
+  /// A run that went unstable: the message names step, place and quantity.
+  class Instability : public std::runtime_error
+  {
+  public:
+    using std::runtime_error::runtime_error;
+  };
+
+  /// What one force evaluation returns besides the force.
+  struct ForceResult
+  {
+    /// Smallest element time step L_e / c_e of this evaluation (s).
+    double stable_dt = 1e300;
+    /// Increment of the stress work sum over elements of V sigma : D dt (J).
+    double internal_energy = 0.;
+    /// Increment of the hourglass energy (J).
+    double hourglass_energy = 0.;
+  };
+
+  /**
+   * @brief Owns the locally owned hexahedra, their stress, hourglass and material history,
+   * and computes their nodal forces.
+   *
+   * Elements are sorted by material so that each material is called on contiguous batches.
+   */
+  class HexForce : public base::ParameterOwner
+  {
+  public:
+    bool
+    declare_parameters(dealii::ParameterHandler &prm) override;
+
+    void
+    check_parameters(const base::PrmSource &source) const override;
+
+    /**
+     * @brief Builds the element arrays from the locally owned cells.
+     */
+    void
+    prepare(const mesh::Discretization &discretization, const materials::MaterialLibrary &library);
+
+    /**
+     * @brief Adds rho0 V0 / 8 of every owned element to its nodes (all three components).
+     * Ghost entries are summed; call compress(add) afterwards.
+     */
+    void
+    add_lumped_mass(mesh::Vector &mass) const;
+
+    /// Smallest L_e / c of the undeformed elements with the initial wave speed (s). @note Collective.
+    double
+    initial_stable_dt() const;
+
+    /**
+     * @brief Adds the internal nodal forces at the end of the step into @p f (owned and ghost
+     * entries; call compress(add) afterwards) and updates stress and history.
+     *
+     * @param[in] d displacement at the end of the step, ghost values set
+     * @param[in] v velocity of the step (mid-step), ghost values set
+     * @param[in] dt step size
+     * @param[in] step step number, for diagnostics
+     * @throws Instability for an inverted element or a non-finite stress.
+     */
+    ForceResult
+    add_internal_forces(const mesh::Vector &d, const mesh::Vector &v, double dt, unsigned int step,
+                        mesh::Vector &f);
+
+    /// Number of locally owned elements.
+    unsigned int
+    n_local_elements() const
+    {
+      return static_cast<unsigned int>(cell_index_.size());
+    }
+
+    /// Active cell index of local element @p e.
+    unsigned int
+    cell_index(unsigned int e) const
+    {
+      return cell_index_[e];
+    }
+
+    /// Local element index of the active cell @p cell_index, or -1 if the cell is not owned here.
+    int
+    element_of_cell(unsigned int cell_index) const
+    {
+      return cell_index < element_of_cell_.size() ? element_of_cell_[cell_index] : -1;
+    }
+
+    /// Cauchy stress of local element @p e, 6 components.
+    const double *
+    stress(unsigned int e) const
+    {
+      return &stress_[6 * e];
+    }
+
+    /// History slot @p name of local element @p e, or 0 if its material has none.
+    double
+    state_value(unsigned int e, const std::string &name) const;
+
+    /// Body index of local element @p e.
+    unsigned int
+    body(unsigned int e) const
+    {
+      return body_[e];
+    }
+
+    /// Hourglass coefficient in use.
+    double
+    hourglass_coefficient() const
+    {
+      return hourglass_coefficient_;
+    }
+
+  private:
+    struct Group
+    {
+      const materials::Material *material = nullptr;
+      unsigned int               begin = 0, end = 0;
+      unsigned int               n_slots = 0;
+      std::vector<double>        state;
+    };
+
+    double hourglass_coefficient_ = 0.05;
+    bool   declared_              = false;
+
+    const mesh::Discretization *discretization_ = nullptr;
+    std::vector<unsigned int>   nodes_;      // 8 per element: local index of the node's first DOF
+    std::vector<unsigned int>   cell_index_; // active cell index
+    std::vector<unsigned int>   body_;
+    std::vector<int>            element_of_cell_;
+    std::vector<unsigned int>   group_of_;   // group index per element
+    std::vector<double>         volume0_;
+    std::vector<double>         stress_;     // 6 per element
+    std::vector<double>         hourglass_;  // 12 per element: hourglass force per mode and direction
+    std::vector<Group>          groups_;
+
+    [[noreturn]] void
+    fail(unsigned int e, const mesh::Vector &d, unsigned int step, const std::string &what) const;
+  };
+} // namespace shard::fe

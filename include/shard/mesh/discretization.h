@@ -1,0 +1,183 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+/**
+ * @file discretization.h
+ * @brief Bodies, their meshes, the distributed triangulation and the degrees of freedom.
+ * @ingroup mesh
+ */
+#pragma once
+
+#include <shard/base/parameters.h>
+
+#include <deal.II/base/partitioner.h>
+#include <deal.II/distributed/tria.h>
+#include <deal.II/dofs/dof_handler.h>
+#include <deal.II/fe/fe_system.h>
+#include <deal.II/lac/la_parallel_vector.h>
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace shard::mesh
+{
+  /// Distributed vector type used for every state vector.
+  using Vector = dealii::LinearAlgebra::distributed::Vector<double>;
+
+  /**
+   * @brief Parameters of one body: its mesh, material and initial velocity
+   * (subsection `B - Mesh/<name>`).
+   */
+  struct BodyParameters
+  {
+    /// Body name (the subsection name).
+    std::string name;
+    /// Mesh shape: box, rod, cylinder or gmsh.
+    std::string shape = "box";
+    /// Box: lower corner "x, y, z" (m).
+    std::string lower_corner = "0, 0, 0";
+    /// Box: upper corner "x, y, z" (m).
+    std::string upper_corner = "0.1, 0.01, 0.01";
+    /// Rod and cylinder: length along the axis (m).
+    double length = 0.1;
+    /// Rod: side of the square cross-section (m).
+    double width = 0.01;
+    /// Cylinder: radius (m).
+    double radius = 0.005;
+    /// Rod and cylinder: axis direction x, y or z.
+    std::string axis = "z";
+    /// Rod and cylinder: centre of the start face; gmsh: translation (m).
+    std::string origin = "0, 0, 0";
+    /// Target element size (m); 0 uses `refinement`.
+    double element_size = 0.;
+    /// Global refinement level when element size is 0 (box and rod: 2^level cells per edge).
+    unsigned int refinement = 2;
+    /// Gmsh: mesh file, relative to the .prm file's directory.
+    std::string mesh_file;
+    /// Gmsh: factor applied to the file's coordinates to get metres.
+    double mesh_scale = 1.;
+    /// Material name from `C - Materials`.
+    std::string material = "steel";
+    /// Initial velocity: three muparser expressions of x, y, z separated by ';' (m/s).
+    std::string initial_velocity = "0; 0; 0";
+  };
+
+  /**
+   * @brief Owns the bodies, the distributed triangulation, the Q1 vector element and the DoFs.
+   *
+   * All bodies are meshed in serial, refined, and merged into one coarse mesh that is then
+   * partitioned by p4est. Cell material id = body index; each body keeps its own boundary ids.
+   * The three DOFs of a vertex are consecutive and owned by one rank (checked in prepare()).
+   */
+  class Discretization : public base::ParameterOwner
+  {
+  public:
+    /// @param comm communicator of the run.
+    explicit Discretization(MPI_Comm comm);
+
+    bool
+    declare_parameters(dealii::ParameterHandler &prm) override;
+
+    void
+    check_parameters(const base::PrmSource &source) const override;
+
+    /**
+     * @brief Builds the meshes, the triangulation, DoFs, partitioner and reference positions.
+     * @param source for relative mesh paths and error messages.
+     * @note Collective.
+     */
+    void
+    prepare(const base::PrmSource &source);
+
+    /// The bodies in input order (body index = cell material id).
+    const std::vector<BodyParameters> &
+    bodies() const
+    {
+      return bodies_;
+    }
+
+    /// Index of body @p name, or -1.
+    int
+    body_index(const std::string &name) const;
+
+    /// The distributed triangulation.
+    const dealii::parallel::distributed::Triangulation<3> &
+    triangulation() const
+    {
+      return triangulation_;
+    }
+
+    /// DoF handler of FESystem(FE_Q(1), 3).
+    const dealii::DoFHandler<3> &
+    dof_handler() const
+    {
+      return dof_handler_;
+    }
+
+    /// Partitioner shared by every state vector (owned + locally relevant DOFs).
+    const std::shared_ptr<const dealii::Utilities::MPI::Partitioner> &
+    partitioner() const
+    {
+      return partitioner_;
+    }
+
+    /// Reference positions X of every owned and ghost DOF (ghost values set).
+    const Vector &
+    reference_positions() const
+    {
+      return reference_;
+    }
+
+    /// A new vector with the shared layout, zero.
+    void
+    initialize_vector(Vector &v) const
+    {
+      v.reinit(partitioner_);
+    }
+
+    /// Number of active cells in all bodies.
+    dealii::types::global_cell_index
+    n_elements() const
+    {
+      return triangulation_.n_global_active_cells();
+    }
+
+    /// Communicator of the run.
+    MPI_Comm
+    communicator() const
+    {
+      return comm_;
+    }
+
+    /**
+     * @brief Local indices of the first DOF of each owned node on boundary @p boundary_id of
+     * body @p body (all boundary nodes of the body when @p boundary_id is -1).
+     */
+    std::vector<unsigned int>
+    boundary_nodes(unsigned int body, int boundary_id) const;
+
+    /**
+     * @brief Reference area assigned to each owned node of the faces with @p boundary_id of
+     * @p body (a quarter of each face area per node). Returns (first local DOF, area) pairs.
+     * @note Collective.
+     */
+    std::vector<std::pair<unsigned int, double>>
+    boundary_node_areas(unsigned int body, int boundary_id) const;
+
+    /// Local indices of the first DOF of each owned node of @p body.
+    std::vector<unsigned int>
+    body_nodes(unsigned int body) const;
+
+  private:
+    MPI_Comm                                                comm_;
+    std::vector<std::string>                                body_names_ = {"body"};
+    std::string                                             body_names_text_ = "body";
+    std::vector<BodyParameters>                             bodies_;
+    std::map<std::string, std::unique_ptr<BodyParameters>> declared_;
+    dealii::parallel::distributed::Triangulation<3>         triangulation_;
+    dealii::FESystem<3>                                     fe_;
+    dealii::DoFHandler<3>                                   dof_handler_;
+    std::shared_ptr<const dealii::Utilities::MPI::Partitioner> partitioner_;
+    Vector                                                  reference_;
+  };
+} // namespace shard::mesh

@@ -1,0 +1,95 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+/**
+ * @file field_output.h
+ * @brief ParaView output of the fields (subsection `J - Output`): one PVTU per output time,
+ *        collected in a PVD time series, written on the deformed mesh.
+ * @ingroup output
+ */
+#pragma once
+
+#include <shard/base/parameters.h>
+#include <shard/fe/hex_force.h>
+#include <shard/mesh/discretization.h>
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace shard::output
+{
+  /**
+   * @brief Writes displacement and velocity (nodal), stress, von Mises stress, effective plastic
+   * strain, failure flag, material (body) and MPI rank (per element) to `<dir>/solution_NNNN.pvtu`
+   * and keeps `<dir>/solution.pvd` current (written to a temporary file, then renamed).
+   */
+  class FieldOutput : public base::ParameterOwner
+  {
+  public:
+    bool
+    declare_parameters(dealii::ParameterHandler &prm) override;
+
+    void
+    check_parameters(const base::PrmSource &source) const override;
+
+    /// Output directory (created by prepare()).
+    const std::string &
+    directory() const
+    {
+      return directory_;
+    }
+
+    /// Simulated time between field outputs (s); 0: first and last step only.
+    double
+    interval() const
+    {
+      return interval_;
+    }
+
+    /// Steps between rows of history.csv.
+    unsigned int
+    history_interval() const
+    {
+      return history_interval_;
+    }
+
+    /// Wall-clock seconds between progress lines.
+    double
+    progress_interval() const
+    {
+      return progress_interval_;
+    }
+
+    /// Creates the output directory. @note Collective.
+    void
+    prepare(const mesh::Discretization &discretization, const fe::HexForce &hex);
+
+    /**
+     * @brief Writes the fields at @p time. @p d and @p v must have ghost values set.
+     * @note Collective.
+     */
+    void
+    write(double time, const mesh::Vector &d, const mesh::Vector &v);
+
+    /// Path of the PVD file.
+    std::string
+    pvd_path() const
+    {
+      return directory_ + "/solution.pvd";
+    }
+
+  private:
+    std::string  directory_         = "output";
+    double       interval_          = 0.;
+    unsigned int history_interval_  = 1;
+    double       progress_interval_ = 2.;
+    bool         declared_          = false;
+
+    const mesh::Discretization                *discretization_ = nullptr;
+    const fe::HexForce                        *hex_            = nullptr;
+    std::vector<std::pair<double, std::string>> records_;
+  };
+
+  /// Writes @p content to @p path through a temporary file and a rename (atomic on POSIX).
+  void
+  write_file_atomically(const std::string &path, const std::string &content);
+} // namespace shard::output

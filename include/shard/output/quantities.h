@@ -1,0 +1,82 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+/**
+ * @file quantities.h
+ * @brief Scene quantities of interest (subsection `K - Quantities`): reaction forces,
+ *        extents, point stresses and velocities, maxima of history variables.
+ * @ingroup output
+ */
+#pragma once
+
+#include <shard/base/parameters.h>
+#include <shard/bc/boundary_conditions.h>
+#include <shard/fe/hex_force.h>
+#include <shard/mesh/discretization.h>
+
+#include <string>
+#include <vector>
+
+namespace shard::output
+{
+  /**
+   * @brief The quantities a scene asks for, one column each in history.csv.
+   *
+   * Syntax of `quantities`: entries `name = kind arguments` separated by ';'. Kinds:
+   * - `reaction <condition> <x|y|z|n>`: sum of the reaction forces of a kinematic condition (N);
+   *   n is the component along a rigid wall's normal.
+   * - `max_coordinate <body> <x|y|z>`, `min_coordinate <body> <x|y|z>`: extent of the deformed body (m).
+   * - `max_radius <body> <x|y|z> [boundary id]`: largest distance of a node from the axis through
+   *   the origin (m), over the body or the nodes of one boundary id.
+   * - `stress <x> <y> <z> <xx|yy|zz|yz|xz|xy|vm|p>`: stress of the element containing the
+   *   reference point (Pa; p is the pressure, compression positive).
+   * - `velocity <x> <y> <z> <x|y|z>`: velocity of the node nearest the reference point (m/s).
+   * - `max_plastic_strain <body|all>`: largest effective plastic strain (1).
+   */
+  class Quantities : public base::ParameterOwner
+  {
+  public:
+    bool
+    declare_parameters(dealii::ParameterHandler &prm) override;
+
+    void
+    check_parameters(const base::PrmSource &source) const override;
+
+    /// Resolves bodies, conditions and points. @note Collective.
+    void
+    prepare(const mesh::Discretization &discretization, const fe::HexForce &hex,
+            const bc::BoundaryConditions &conditions);
+
+    /// Column names.
+    std::vector<std::string>
+    names() const;
+
+    /**
+     * @brief Evaluates every quantity.
+     * @param d displacement now (owned entries used)
+     * @param v velocity at the same time (owned entries used)
+     * @note Collective.
+     */
+    std::vector<double>
+    evaluate(const mesh::Vector &d, const mesh::Vector &v) const;
+
+  private:
+    struct Item
+    {
+      std::string              name, kind;
+      std::vector<std::string> args;
+      int                      body = -1, component = 0, boundary_id = -1;
+      std::vector<unsigned int> nodes;
+      int                      element = -1; // local element index owning the point
+      unsigned int             node    = 0;
+      bool                     owns_node = false;
+    };
+    std::string                   text_;
+    bool                          declared_ = false;
+    std::vector<Item>             items_;
+    const mesh::Discretization   *discretization_ = nullptr;
+    const fe::HexForce           *hex_            = nullptr;
+    const bc::BoundaryConditions *conditions_     = nullptr;
+
+    std::vector<Item>
+    parse(std::string &error) const;
+  };
+} // namespace shard::output

@@ -1,0 +1,124 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+/**
+ * @file simulation.h
+ * @brief The owner of every component and the explicit time loop.
+ * @ingroup simulation
+ */
+#pragma once
+
+#include <shard/base/parameters.h>
+#include <shard/bc/boundary_conditions.h>
+#include <shard/fe/hex_force.h>
+#include <shard/materials/material_library.h>
+#include <shard/mesh/discretization.h>
+#include <shard/output/field_output.h>
+#include <shard/output/quantities.h>
+#include <shard/time/central_difference.h>
+
+#include <array>
+#include <fstream>
+#include <string>
+#include <vector>
+
+namespace shard
+{
+  /// Outcome of a run.
+  struct RunResult
+  {
+    /// "completed", "max steps reached" or "unstable".
+    std::string status;
+    /// Diagnostic of an unstable run.
+    std::string message;
+    /// Exit code for the program: 0 completed, 3 unstable.
+    int exit_code = 0;
+  };
+
+  /**
+   * @brief A scene: owns every component by value in dependency order (subsection
+   * `A - Simulation` for its own keys) and runs the explicit step.
+   *
+   * Construction declares nothing; read() declares and parses all parameters, prepare()
+   * builds, run() integrates. run() reads as the numbered phases of the step
+   * (doc/manual/time_loop.md).
+   */
+  class Simulation : public base::ParameterOwner
+  {
+  public:
+    /// @param comm communicator of the run.
+    explicit Simulation(MPI_Comm comm);
+
+    bool
+    declare_parameters(dealii::ParameterHandler &prm) override;
+
+    void
+    check_parameters(const base::PrmSource &source) const override;
+
+    /**
+     * @brief Declares, parses and checks the parameters of every component.
+     * @throws base::InputError naming key, file line and allowed range.
+     */
+    void
+    read(const base::PrmSource &source);
+
+    /// Writes every parameter with its documentation, in declaration order.
+    void
+    print_parameters(std::ostream &out) const;
+
+    /**
+     * @brief Builds mesh, DOFs, materials, element arrays and the initial state.
+     * @throws base::InputError for inputs that can only be checked while building (mesh files).
+     * @note Collective.
+     */
+    void
+    prepare();
+
+    /**
+     * @brief Integrates to the end time; writes history.csv, field output and summary.json.
+     * @note Collective.
+     */
+    RunResult
+    run();
+
+    /// Output directory of the run.
+    const std::string &
+    output_directory() const
+    {
+      return output_.directory();
+    }
+
+  private:
+    MPI_Comm                     comm_;
+    base::PrmSource              source_;
+    dealii::ParameterHandler     prm_;
+    std::string                  title_ = "shard scene";
+    bool                         declared_ = false;
+
+    // Components in dependency order.
+    mesh::Discretization         discretization_;
+    materials::MaterialLibrary   materials_;
+    fe::HexForce                 hex_;
+    bc::BoundaryConditions       conditions_;
+    time::CentralDifference      integrator_;
+    output::FieldOutput          output_;
+    output::Quantities           quantities_;
+
+    // State vectors, all with the one layout of Discretization.
+    mesh::Vector d_, v_, v_now_, f_, f_ext_, mass_;
+
+    // Bookkeeping.
+    time::LocalBalance balance_;
+    double             internal_energy_ = 0, hourglass_energy_ = 0;
+    double             reference_energy_ = 0, initial_energy_ = 0;
+    double             t_ = 0, dt_ = 0, dt_next_ = 0, stable_dt_ = 0;
+    unsigned int       step_ = 0;
+    double             energy_error_ = 0, max_energy_error_ = 0;
+    std::vector<double> q_final_, q_min_, q_max_;
+    std::ofstream      history_;
+    std::array<double, 11> phase_time_{};
+
+    void
+    record();
+    void
+    write_summary(const RunResult &result, double wall_time) const;
+  };
+} // namespace shard

@@ -1,0 +1,336 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/fe/hex_force.h>
+#include <shard/fe/hex_kernel.h>
+
+#include <deal.II/base/mpi.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <sstream>
+
+namespace shard::fe
+{
+  using namespace dealii;
+
+  namespace
+  {
+    constexpr unsigned int batch_size = 64;
+  }
+
+  bool
+  HexForce::declare_parameters(ParameterHandler &prm)
+  {
+    if (declared_)
+      return false;
+    declared_ = true;
+    prm.enter_subsection("D - Finite elements");
+    prm.add_parameter("hourglass coefficient", hourglass_coefficient_,
+                      "Flanagan-Belytschko stiffness hourglass coefficient q_hg: the hourglass stiffness "
+                      "of each mode is q_hg rho c^2 (B:B) / (8 V). Unit: 1. Range: 0 to 0.3.",
+                      Patterns::Double(0, 0.3));
+    prm.leave_subsection();
+    return true;
+  }
+
+  void
+  HexForce::check_parameters(const base::PrmSource &source) const
+  {
+    if (!(hourglass_coefficient_ >= 0 && hourglass_coefficient_ <= 0.3))
+      source.fail("D - Finite elements/hourglass coefficient", std::to_string(hourglass_coefficient_),
+                  "must be in [0, 0.3]. Unit: 1.");
+  }
+
+  void
+  HexForce::prepare(const mesh::Discretization &discretization, const materials::MaterialLibrary &library)
+  {
+    discretization_         = &discretization;
+    const auto &dh          = discretization.dof_handler();
+    const auto &partitioner = *discretization.partitioner();
+    const auto &X           = discretization.reference_positions();
+    const auto &bodies      = discretization.bodies();
+
+    // Material of each body -> group index (one group per material).
+    std::vector<std::string> material_names;
+    std::vector<unsigned int> group_of_body;
+    for (const auto &b : bodies)
+      {
+        auto it = std::find(material_names.begin(), material_names.end(), b.material);
+        group_of_body.push_back(static_cast<unsigned int>(it - material_names.begin()));
+        if (it == material_names.end())
+          material_names.push_back(b.material);
+      }
+
+    struct Raw
+    {
+      unsigned int group, cell, body;
+      unsigned int nodes[8];
+    };
+    std::vector<Raw> raw;
+    for (const auto &cell : dh.active_cell_iterators())
+      if (cell->is_locally_owned())
+        {
+          Raw r;
+          r.body  = cell->material_id();
+          r.group = group_of_body[r.body];
+          r.cell  = cell->active_cell_index();
+          for (unsigned int v = 0; v < 8; ++v)
+            r.nodes[v] = partitioner.global_to_local(cell->vertex_dof_index(v, 0));
+          raw.push_back(r);
+        }
+    std::stable_sort(raw.begin(), raw.end(), [](const Raw &a, const Raw &b) { return a.group < b.group; });
+
+    const unsigned int n = raw.size();
+    nodes_.resize(8 * n);
+    cell_index_.resize(n);
+    body_.resize(n);
+    group_of_.resize(n);
+    volume0_.resize(n);
+    stress_.assign(6 * n, 0.);
+    hourglass_.assign(12 * n, 0.);
+    groups_.assign(material_names.size(), Group());
+    for (unsigned int g = 0; g < groups_.size(); ++g)
+      groups_[g].material = &library.get(material_names[g]);
+    element_of_cell_.assign(discretization.triangulation().n_active_cells(), -1);
+    for (unsigned int e = 0; e < n; ++e)
+      {
+        element_of_cell_[raw[e].cell] = static_cast<int>(e);
+        std::copy(raw[e].nodes, raw[e].nodes + 8, &nodes_[8 * e]);
+        cell_index_[e] = raw[e].cell;
+        body_[e]       = raw[e].body;
+        group_of_[e]   = raw[e].group;
+        double x[8][3], B[8][3];
+        for (unsigned int a = 0; a < 8; ++a)
+          for (unsigned int i = 0; i < 3; ++i)
+            x[a][i] = X.local_element(raw[e].nodes[a] + i);
+        volume0_[e] = hex_volume_gradient(x, B);
+        AssertThrow(volume0_[e] > 0, ExcMessage("inverted element in the input mesh (body " +
+                                                bodies[raw[e].body].name + ")"));
+      }
+    for (unsigned int g = 0; g < groups_.size(); ++g)
+      {
+        auto &grp = groups_[g];
+        grp.begin = std::find(group_of_.begin(), group_of_.end(), g) - group_of_.begin();
+        grp.end   = grp.begin + std::count(group_of_.begin(), group_of_.end(), g);
+        grp.n_slots = grp.material->n_state_slots();
+        grp.state.assign(static_cast<std::size_t>(grp.end - grp.begin) * grp.n_slots, 0.);
+        grp.material->initialize_state(grp.end - grp.begin, grp.state.data());
+      }
+  }
+
+  void
+  HexForce::add_lumped_mass(mesh::Vector &mass) const
+  {
+    for (unsigned int e = 0; e < n_local_elements(); ++e)
+      {
+        const double m = groups_[group_of_[e]].material->density() * volume0_[e] / 8.;
+        for (unsigned int a = 0; a < 8; ++a)
+          for (unsigned int i = 0; i < 3; ++i)
+            mass.local_element(nodes_[8 * e + a] + i) += m;
+      }
+  }
+
+  double
+  HexForce::initial_stable_dt() const
+  {
+    const auto &X  = discretization_->reference_positions();
+    double      dt = 1e300;
+    for (unsigned int e = 0; e < n_local_elements(); ++e)
+      {
+        double x[8][3];
+        for (unsigned int a = 0; a < 8; ++a)
+          for (unsigned int i = 0; i < 3; ++i)
+            x[a][i] = X.local_element(nodes_[8 * e + a] + i);
+        const double c = groups_[group_of_[e]].material->initial_wave_speed();
+        dt             = std::min(dt, volume0_[e] / hex_max_face_area(x) / c);
+      }
+    return Utilities::MPI::min(dt, discretization_->communicator());
+  }
+
+  double
+  HexForce::state_value(const unsigned int e, const std::string &name) const
+  {
+    const auto &grp  = groups_[group_of_[e]];
+    const int   slot = grp.material->state_slot(name);
+    return slot < 0 ? 0. : grp.state[static_cast<std::size_t>(e - grp.begin) * grp.n_slots + slot];
+  }
+
+  void
+  HexForce::fail(const unsigned int e, const mesh::Vector &d, const unsigned int step,
+                 const std::string &what) const
+  {
+    const auto &X = discretization_->reference_positions();
+    double      c[3] = {0, 0, 0};
+    for (unsigned int a = 0; a < 8; ++a)
+      for (unsigned int i = 0; i < 3; ++i)
+        c[i] += (X.local_element(nodes_[8 * e + a] + i) + d.local_element(nodes_[8 * e + a] + i)) / 8;
+    std::ostringstream out;
+    out << "step " << step << ": " << what << " in element " << cell_index_[e] << " of body '"
+        << discretization_->bodies()[body_[e]].name << "' at (" << c[0] << ", " << c[1] << ", " << c[2]
+        << ") m";
+    throw Instability(out.str());
+  }
+
+  ForceResult
+  HexForce::add_internal_forces(const mesh::Vector &d, const mesh::Vector &v, const double dt,
+                                const unsigned int step, mesh::Vector &f)
+  {
+    const auto  &X  = discretization_->reference_positions();
+    const double *Xp = X.begin(), *dp = d.begin(), *vp = v.begin();
+    double       *fp = f.begin();
+    ForceResult   result;
+
+    // Per-batch scratch: kinematics of pass 1 used by the material call and pass 2.
+    struct Scratch
+    {
+      double B[8][3];
+      double gamma[4][8];
+      double q[4][3];
+      double rotation[3][3];
+      double volume, volume_mid, max_area;
+      double stress_old[6];
+    };
+    std::vector<Scratch> scratch(batch_size);
+    double               de[batch_size * 6], J[batch_size], length[batch_size], c[batch_size];
+
+    for (auto &grp : groups_)
+      for (unsigned int b0 = grp.begin; b0 < grp.end; b0 += batch_size)
+        {
+          const unsigned int nb = std::min(batch_size, grp.end - b0);
+          // Pass 1: kinematics, objective rotation of the stored stress.
+          for (unsigned int k = 0; k < nb; ++k)
+            {
+              const unsigned int  e = b0 + k;
+              const unsigned int *n = &nodes_[8 * e];
+              Scratch            &s = scratch[k];
+              double              x[8][3], xm[8][3], vel[8][3];
+              for (unsigned int a = 0; a < 8; ++a)
+                for (unsigned int i = 0; i < 3; ++i)
+                  {
+                    const unsigned int j = n[a] + i;
+                    vel[a][i]            = vp[j];
+                    x[a][i]              = Xp[j] + dp[j];
+                    xm[a][i]             = x[a][i] - 0.5 * dt * vel[a][i];
+                  }
+              double Bm[8][3];
+              s.volume_mid = hex_volume_gradient(xm, Bm);
+              s.volume     = hex_volume_gradient(x, s.B);
+              if (!(s.volume > 0) || !(s.volume_mid > 0))
+                fail(e, d, step, "inverted element (volume " + std::to_string(s.volume) + " m^3)");
+              // Mean velocity gradient at mid-step.
+              double       L[3][3] = {};
+              const double inv_vm  = 1. / s.volume_mid;
+              for (unsigned int a = 0; a < 8; ++a)
+                for (unsigned int i = 0; i < 3; ++i)
+                  for (unsigned int j = 0; j < 3; ++j)
+                    L[i][j] += vel[a][i] * Bm[a][j];
+              double W[3][3];
+              for (unsigned int i = 0; i < 3; ++i)
+                for (unsigned int j = 0; j < 3; ++j)
+                  {
+                    L[i][j] *= inv_vm;
+                  }
+              for (unsigned int i = 0; i < 3; ++i)
+                for (unsigned int j = 0; j < 3; ++j)
+                  W[i][j] = 0.5 * (L[i][j] - L[j][i]);
+              double *dek = &de[6 * k];
+              dek[0]      = dt * L[0][0];
+              dek[1]      = dt * L[1][1];
+              dek[2]      = dt * L[2][2];
+              dek[3]      = 0.5 * dt * (L[1][2] + L[2][1]);
+              dek[4]      = 0.5 * dt * (L[0][2] + L[2][0]);
+              dek[5]      = 0.5 * dt * (L[0][1] + L[1][0]);
+              hughes_winget_rotation(W, dt, s.rotation);
+              double *sig = &stress_[6 * e];
+              rotate_symmetric(s.rotation, sig);
+              std::copy(sig, sig + 6, s.stress_old);
+              J[k]       = s.volume / volume0_[e];
+              s.max_area = hex_max_face_area(x);
+              length[k]  = s.volume / s.max_area;
+              // Hourglass shape vectors and rates at the end of the step.
+              hex_hourglass_vectors(x, s.B, s.volume, s.gamma);
+              for (unsigned int m = 0; m < 4; ++m)
+                for (unsigned int i = 0; i < 3; ++i)
+                  {
+                    double q = 0;
+                    for (unsigned int a = 0; a < 8; ++a)
+                      q += s.gamma[m][a] * vel[a][i];
+                    s.q[m][i] = q;
+                  }
+            }
+
+          // One material call per batch.
+          materials::PointBatch batch;
+          batch.n                     = nb;
+          batch.dt                    = dt;
+          batch.strain_increment      = de;
+          batch.relative_volume       = J;
+          batch.characteristic_length = length;
+          batch.stress                = &stress_[6 * b0];
+          batch.state                 = grp.state.data() + static_cast<std::size_t>(b0 - grp.begin) * grp.n_slots;
+          batch.wave_speed            = c;
+          grp.material->update(batch);
+
+          // Pass 2: energy, nodal forces, hourglass control, time step.
+          const double rho0 = grp.material->density();
+          for (unsigned int k = 0; k < nb; ++k)
+            {
+              const unsigned int e   = b0 + k;
+              Scratch           &s   = scratch[k];
+              const double      *sig = &stress_[6 * e];
+              const double      *dek = &de[6 * k];
+              double             work = 0;
+              for (unsigned int i = 0; i < 3; ++i)
+                work += (s.stress_old[i] + sig[i]) * dek[i];
+              for (unsigned int i = 3; i < 6; ++i)
+                work += 2. * (s.stress_old[i] + sig[i]) * dek[i];
+              work *= 0.5 * s.volume_mid;
+              if (!std::isfinite(work) || !std::isfinite(c[k]))
+                fail(e, d, step, "non-finite stress (sigma_xx = " + std::to_string(sig[0]) + " Pa)");
+              result.internal_energy += work;
+              result.stable_dt = std::min(result.stable_dt, length[k] / c[k]);
+
+              // Stiffness hourglass control: the hourglass forces rotate with the element and
+              // grow with the hourglass displacement increment.
+              double      *h     = &hourglass_[12 * e];
+              double       b2    = 0;
+              for (unsigned int a = 0; a < 8; ++a)
+                b2 += s.B[a][0] * s.B[a][0] + s.B[a][1] * s.B[a][1] + s.B[a][2] * s.B[a][2];
+              const double stiffness = hourglass_coefficient_ * (rho0 / J[k]) * c[k] * c[k] * b2 / (8. * s.volume);
+              double       hg_work   = 0;
+              for (unsigned int m = 0; m < 4; ++m)
+                {
+                  double r[3];
+                  for (unsigned int i = 0; i < 3; ++i)
+                    r[i] = s.rotation[i][0] * h[3 * m] + s.rotation[i][1] * h[3 * m + 1] +
+                           s.rotation[i][2] * h[3 * m + 2];
+                  for (unsigned int i = 0; i < 3; ++i)
+                    {
+                      const double inc = stiffness * dt * s.q[m][i];
+                      h[3 * m + i]     = r[i] + inc;
+                      hg_work += dt * s.q[m][i] * (r[i] + 0.5 * inc);
+                    }
+                }
+              result.hourglass_energy += hg_work;
+
+              const unsigned int *n = &nodes_[8 * e];
+              for (unsigned int a = 0; a < 8; ++a)
+                {
+                  const double *B  = s.B[a];
+                  double       *fa = fp + n[a];
+                  fa[0] -= sig[0] * B[0] + sig[5] * B[1] + sig[4] * B[2];
+                  fa[1] -= sig[5] * B[0] + sig[1] * B[1] + sig[3] * B[2];
+                  fa[2] -= sig[4] * B[0] + sig[3] * B[1] + sig[2] * B[2];
+                  for (unsigned int m = 0; m < 4; ++m)
+                    {
+                      const double g = s.gamma[m][a];
+                      fa[0] -= g * h[3 * m];
+                      fa[1] -= g * h[3 * m + 1];
+                      fa[2] -= g * h[3 * m + 2];
+                    }
+                }
+            }
+        }
+    return result;
+  }
+} // namespace shard::fe

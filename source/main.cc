@@ -1,0 +1,123 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+// The shard program: run a scene, print the parameters, help and version.
+#include <shard/base/version.h>
+#include <shard/simulation/simulation.h>
+
+#include <deal.II/base/mpi.h>
+
+#include <cstring>
+#include <iostream>
+
+namespace
+{
+  const char *const usage =
+    "shard: explicit impact and blast failure of concrete and steel structures.\n"
+    "\n"
+    "Usage:\n"
+    "  shard run FILE.prm [--set \"Section/Subsection/key=value\" ...]\n"
+    "      Runs a scene. --set overrides any parameter of the file (repeatable).\n"
+    "      Writes history.csv, summary.json, parameters.prm and solution.pvd into the output directory.\n"
+    "  shard print-parameters [FILE.prm] [--set ...]\n"
+    "      Writes every parameter with its documentation, unit, range and default (or the value\n"
+    "      given in FILE.prm). Named subsections (bodies, materials, conditions) follow FILE.prm.\n"
+    "  shard --help      This text.\n"
+    "  shard --version   Version and git description.\n"
+    "\n"
+    "Run in parallel with: mpirun -np N shard run FILE.prm\n"
+    "Exit codes: 0 completed, 1 bad input, 2 bad command line, 3 unstable run.\n";
+
+  bool
+  is_root(MPI_Comm comm)
+  {
+    return dealii::Utilities::MPI::this_mpi_process(comm) == 0;
+  }
+} // namespace
+
+int
+main(int argc, char **argv)
+{
+  dealii::Utilities::MPI::MPI_InitFinalize mpi(argc, argv, 1);
+  const MPI_Comm                           comm = MPI_COMM_WORLD;
+  const std::vector<std::string>           args(argv + 1, argv + argc);
+  if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help")
+    {
+      if (is_root(comm))
+        std::cout << usage;
+      return args.empty() ? 2 : 0;
+    }
+  if (args[0] == "--version")
+    {
+      if (is_root(comm))
+        std::cout << "shard " << shard::version_string << " (" << shard::git_description << "), deal.II "
+                  << DEAL_II_PACKAGE_VERSION << "\n";
+      return 0;
+    }
+  if (args[0] != "run" && args[0] != "print-parameters")
+    {
+      if (is_root(comm))
+        std::cerr << "shard: unknown command '" << args[0] << "'.\n\n" << usage;
+      return 2;
+    }
+
+  try
+    {
+      std::string                 file;
+      std::vector<std::string>    overrides;
+      for (unsigned int i = 1; i < args.size(); ++i)
+        {
+          if (args[i] == "--set" && i + 1 < args.size())
+            overrides.push_back(args[++i]);
+          else if (args[i].rfind("--set=", 0) == 0)
+            overrides.push_back(args[i].substr(6));
+          else if (file.empty() && args[i].rfind("--", 0) != 0)
+            file = args[i];
+          else
+            {
+              if (is_root(comm))
+                std::cerr << "shard: unexpected argument '" << args[i] << "'.\n\n" << usage;
+              return 2;
+            }
+        }
+      if (args[0] == "run" && file.empty())
+        {
+          if (is_root(comm))
+            std::cerr << "shard: 'run' needs a parameter file.\n\n" << usage;
+          return 2;
+        }
+      shard::base::PrmSource source = file.empty() ? shard::base::PrmSource() : shard::base::PrmSource(file);
+      for (const auto &o : overrides)
+        source.add_override(o);
+
+      shard::Simulation simulation(comm);
+      simulation.read(source);
+      if (args[0] == "print-parameters")
+        {
+          if (is_root(comm))
+            simulation.print_parameters(std::cout);
+          return 0;
+        }
+      simulation.prepare();
+      const auto result = simulation.run();
+      if (is_root(comm))
+        {
+          if (result.exit_code != 0)
+            std::cerr << "\nshard: run stopped: " << result.message
+                      << "\nThe output written before this step is intact.\n";
+          std::cerr << "\nResults in " << simulation.output_directory() << "/: summary.json, history.csv, "
+                    << "solution.pvd (open in ParaView)\n";
+        }
+      return result.exit_code;
+    }
+  catch (const shard::base::InputError &e)
+    {
+      if (is_root(comm))
+        std::cerr << "shard: input error: " << e.what() << "\n";
+      return 1;
+    }
+  catch (const std::exception &e)
+    {
+      if (is_root(comm))
+        std::cerr << "shard: error: " << e.what() << "\n";
+      return 1;
+    }
+}

@@ -1,0 +1,26 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+/**
+ * @file material.cc
+ * @brief Non-virtual helpers and defaults of the batch material interface.
+ */
+#include <shard/materials/material.h>
+
+#include <algorithm>
+
+namespace shard::materials
+{
+  int
+  Material::state_slot(const std::string &name) const
+  {
+    const std::vector<std::string> names = state_slot_names();
+    const auto                     it    = std::find(names.begin(), names.end(), name);
+    return it == names.end() ? -1 : static_cast<int>(it - names.begin());
+  }
+
+  void
+  Material::initialize_state(const unsigned int n, double *state) const
+  {
+    const std::size_t size = static_cast<std::size_t>(n) * n_state_slots();
+    std::fill(state, state + size, 0.);
+  }
+} // namespace shard::materials

@@ -1,0 +1,83 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/materials/material_library.h>
+
+#include <regex>
+#include <set>
+
+namespace shard::materials
+{
+  bool
+  MaterialLibrary::declare_parameters(dealii::ParameterHandler &prm)
+  {
+    bool added = false;
+    prm.enter_subsection("C - Materials");
+    if (!names_declared_)
+      {
+        prm.add_parameter("material names", names_text_,
+                          "Comma-separated names of the materials; each has a subsection with its "
+                          "'model' and the model's keys. Names use letters, digits, '_' and '-'.");
+        names_declared_ = added = true;
+      }
+    names_ = base::split(names_text_, ',');
+    for (const auto &name : names_)
+      {
+        auto &e = entries_[name];
+        prm.enter_subsection(name);
+        if (!e.model_parsed && e.declared_model.empty())
+          {
+            // Stage 2: the model key; its value is known after the next parse.
+            prm.add_parameter("model", e.model, "Constitutive model of this material.",
+                              dealii::Patterns::Selection(material_model_names()));
+            e.declared_model = "?";
+            added            = true;
+          }
+        else if (!e.model_parsed)
+          {
+            // Stage 3: the model's own keys.
+            e.model_parsed = true;
+            e.material     = create_material(e.model);
+            e.material->declare_parameters(prm);
+            e.declared_model = e.model;
+            added            = true;
+          }
+        prm.leave_subsection();
+      }
+    prm.leave_subsection();
+    return added;
+  }
+
+  void
+  MaterialLibrary::check_parameters(const base::PrmSource &source) const
+  {
+    const std::string top = "C - Materials/";
+    if (names_.empty())
+      source.fail(top + "material names", names_text_, "at least one material name is required.");
+    std::set<std::string> seen;
+    for (const auto &name : names_)
+      {
+        if (!std::regex_match(name, std::regex("[A-Za-z0-9_-]+")))
+          source.fail(top + "material names", names_text_,
+                      "'" + name + "' may use letters, digits, '_' and '-' only.");
+        if (!seen.insert(name).second)
+          source.fail(top + "material names", names_text_, "'" + name + "' appears twice.");
+        const auto &e = entries_.at(name);
+        if (e.declared_model != e.model)
+          source.fail(top + name + "/model", e.model,
+                      "the model changed after its keys were declared (set 'model' once).");
+        e.material->check_parameters(source, top + name);
+      }
+  }
+
+  void
+  MaterialLibrary::prepare()
+  {
+    for (const auto &name : names_)
+      entries_.at(name).material->prepare();
+  }
+
+  const Material &
+  MaterialLibrary::get(const std::string &name) const
+  {
+    return *entries_.at(name).material;
+  }
+} // namespace shard::materials

@@ -1,0 +1,429 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/base/function.h>
+#include <shard/base/version.h>
+#include <shard/simulation/simulation.h>
+
+#include <deal.II/base/function_parser.h>
+#include <deal.II/base/mpi.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+
+namespace shard
+{
+  using namespace dealii;
+
+  namespace
+  {
+    using Clock = std::chrono::steady_clock;
+
+    /// Phases of the explicit step (doc/manual/time_loop.md); index = phase number.
+    const char *const phase_names[11] = {"0 set-up",       "1 step size",  "2 drift",   "3 exchange",
+                                         "4 topology",     "5 FE force",   "6 particle force",
+                                         "7 loads",        "8 accumulate", "9 kick",    "10 record"};
+
+    /// Adds the wall time of a scope to one phase.
+    class PhaseTimer
+    {
+    public:
+      PhaseTimer(std::array<double, 11> &times, const unsigned int phase)
+        : times_(times)
+        , phase_(phase)
+        , start_(Clock::now())
+      {}
+      ~PhaseTimer()
+      {
+        times_[phase_] += std::chrono::duration<double>(Clock::now() - start_).count();
+      }
+
+    private:
+      std::array<double, 11> &times_;
+      unsigned int            phase_;
+      Clock::time_point       start_;
+    };
+
+    std::string
+    json_escape(const std::string &s)
+    {
+      std::string out;
+      for (const char c : s)
+        {
+          if (c == '"' || c == '\\')
+            out += '\\';
+          if (c == '\n')
+            {
+              out += "\\n";
+              continue;
+            }
+          out += c;
+        }
+      return out;
+    }
+
+    std::string
+    number(const double x)
+    {
+      if (!std::isfinite(x))
+        return "null";
+      std::ostringstream s;
+      s << std::setprecision(10) << x;
+      return s.str();
+    }
+  } // namespace
+
+  Simulation::Simulation(MPI_Comm comm)
+    : comm_(comm)
+    , discretization_(comm)
+  {}
+
+  bool
+  Simulation::declare_parameters(ParameterHandler &prm)
+  {
+    if (declared_)
+      return false;
+    declared_ = true;
+    prm.enter_subsection("A - Simulation");
+    prm.add_parameter("title", title_, "A one-line description of the scene, copied into summary.json.");
+    prm.leave_subsection();
+    return true;
+  }
+
+  void
+  Simulation::check_parameters(const base::PrmSource &) const
+  {}
+
+  void
+  Simulation::read(const base::PrmSource &source)
+  {
+    source_ = source;
+    base::read_parameters(prm_,
+                          {this, &discretization_, &materials_, &hex_, &conditions_, &integrator_, &output_,
+                           &quantities_},
+                          source_);
+  }
+
+  void
+  Simulation::print_parameters(std::ostream &out) const
+  {
+    prm_.print_parameters(out, ParameterHandler::PRM | ParameterHandler::KeepDeclarationOrder);
+  }
+
+  void
+  Simulation::prepare()
+  {
+    const auto start = Clock::now();
+    discretization_.prepare(source_);
+    for (const auto &b : discretization_.bodies())
+      if (!materials_.has(b.material))
+        source_.fail("B - Mesh/" + b.name + "/material", b.material,
+                     "no such material in 'C - Materials/material names'.");
+    materials_.prepare();
+    hex_.prepare(discretization_, materials_);
+    conditions_.prepare(discretization_);
+    output_.prepare(discretization_, hex_);
+    quantities_.prepare(discretization_, hex_, conditions_);
+
+    for (auto *vec : {&d_, &v_, &v_now_, &f_, &f_ext_, &mass_})
+      discretization_.initialize_vector(*vec);
+    hex_.add_lumped_mass(mass_);
+    mass_.compress(VectorOperation::add);
+    mass_.update_ghost_values();
+
+    // Initial velocity of each body at its nodes.
+    const auto &X = discretization_.reference_positions();
+    for (unsigned int k = 0; k < discretization_.bodies().size(); ++k)
+      {
+        const auto     velocity = base::parse_vector_function(discretization_.bodies()[k].initial_velocity, false);
+        Vector<double> value(3);
+        for (const unsigned int j : discretization_.body_nodes(k))
+          {
+            velocity->vector_value(Point<3>(X.local_element(j), X.local_element(j + 1), X.local_element(j + 2)),
+                                  value);
+            for (unsigned int i = 0; i < 3; ++i)
+              v_.local_element(j + i) = value[i];
+          }
+      }
+    phase_time_[0] += std::chrono::duration<double>(Clock::now() - start).count();
+  }
+
+  RunResult
+  Simulation::run()
+  {
+    const auto         start = Clock::now();
+    const unsigned int rank  = Utilities::MPI::this_mpi_process(comm_);
+    const auto         n_elements = discretization_.n_elements();
+    RunResult          result{"completed", "", 0};
+
+    if (rank == 0)
+      {
+        history_.open(output_.directory() + "/history.csv");
+        history_ << "time,step,dt,kinetic_energy,internal_energy,hourglass_energy,external_work,boundary_work,"
+                    "energy_error,momentum_x,momentum_y,momentum_z";
+        for (const auto &name : quantities_.names())
+          history_ << "," << name;
+        history_ << "\n";
+        std::ofstream used(output_.directory() + "/parameters.prm");
+        prm_.print_parameters(used, ParameterHandler::ShortPRM | ParameterHandler::KeepDeclarationOrder);
+      }
+
+    // Initial state: kinetic energy of the input, then the kinematic conditions at t = 0.
+    {
+      double ke = 0;
+      for (unsigned int i = 0; i < v_.locally_owned_size(); ++i)
+        ke += 0.5 * mass_.local_element(i) * v_.local_element(i) * v_.local_element(i);
+      initial_energy_ = Utilities::MPI::sum(ke, comm_);
+      balance_.boundary_work += conditions_.apply_initial(d_, mass_, v_);
+    }
+    stable_dt_ = hex_.initial_stable_dt();
+    f_         = 0;
+    f_ext_     = 0;
+    conditions_.add_external_forces(0., f_ext_);
+    f_ += f_ext_;
+    dt_next_ = integrator_.next_dt(stable_dt_, 0.);
+    integrator_.kick(0., 0., dt_next_, f_, f_ext_, mass_, d_, conditions_, v_, v_now_, balance_);
+    d_.update_ghost_values();
+    v_now_.update_ghost_values();
+    record();
+    output_.write(0., d_, v_now_);
+
+    auto         last_progress   = Clock::now();
+    double       next_output     = output_.interval();
+    const double end             = integrator_.end_time();
+    bool         stop            = false;
+    try
+      {
+        while (!stop)
+          {
+            // 1. Step size (computed from the candidates of the last force evaluation).
+            {
+              PhaseTimer timer(phase_time_, 1);
+              dt_ = dt_next_;
+            }
+            // 2. Drift.
+            {
+              PhaseTimer timer(phase_time_, 2);
+              integrator_.drift(dt_, v_, d_);
+              t_ += dt_;
+              ++step_;
+            }
+            // 3. Exchange: the only place where ghost values are set.
+            {
+              PhaseTimer timer(phase_time_, 3);
+              d_.update_ghost_values();
+              v_.update_ghost_values();
+            }
+            // 5. FE internal force.
+            std::string failure;
+            {
+              PhaseTimer timer(phase_time_, 5);
+              f_ = 0;
+              try
+                {
+                  const auto r = hex_.add_internal_forces(d_, v_, dt_, step_, f_);
+                  stable_dt_   = r.stable_dt;
+                  internal_energy_ += r.internal_energy;
+                  hourglass_energy_ += r.hourglass_energy;
+                }
+              catch (const fe::Instability &e)
+                {
+                  failure = e.what();
+                }
+            }
+            // 7. Loads.
+            {
+              PhaseTimer timer(phase_time_, 7);
+              f_ext_ = 0;
+              conditions_.add_external_forces(t_, f_ext_);
+            }
+            // 8. Accumulate: ghost force sums to their owners, one reduction of the step candidates.
+            {
+              PhaseTimer timer(phase_time_, 8);
+              f_.compress(VectorOperation::add);
+              f_ += f_ext_;
+              const double local[2] = {stable_dt_, failure.empty() ? 0. : -1.};
+              double       global[2];
+              Utilities::MPI::min(ArrayView<const double>(local, 2), comm_, ArrayView<double>(global, 2));
+              stable_dt_ = global[0];
+              if (global[1] < 0)
+                {
+                  std::string all;
+                  for (const auto &m : Utilities::MPI::all_gather(comm_, failure))
+                    if (!m.empty())
+                      all += (all.empty() ? "" : "; ") + m;
+                  throw fe::Instability(all);
+                }
+            }
+            const bool last = t_ >= end * (1 - 1e-12) ||
+                              (integrator_.max_steps() > 0 && step_ >= integrator_.max_steps());
+            // 9. Kick.
+            {
+              PhaseTimer timer(phase_time_, 9);
+              dt_next_ = last ? dt_ : integrator_.next_dt(stable_dt_, t_);
+              integrator_.kick(t_, dt_, dt_next_, f_, f_ext_, mass_, d_, conditions_, v_, v_now_, balance_);
+            }
+            // 10. Record: history, fields, progress (outside the step timer).
+            {
+              PhaseTimer timer(phase_time_, 10);
+              if (step_ % output_.history_interval() == 0 || last)
+                record();
+              if (last || (output_.interval() > 0 && t_ >= next_output * (1 - 1e-12)))
+                {
+                  d_.update_ghost_values();
+                  v_now_.update_ghost_values();
+                  output_.write(t_, d_, v_now_);
+                  while (next_output <= t_ * (1 + 1e-12) && output_.interval() > 0)
+                    next_output += output_.interval();
+                }
+              const double since = std::chrono::duration<double>(Clock::now() - last_progress).count();
+              if (rank == 0 && output_.progress_interval() > 0 && (since >= output_.progress_interval() || last))
+                {
+                  last_progress  = Clock::now();
+                  const double w = std::chrono::duration<double>(Clock::now() - start).count();
+                  const double eta = t_ > 0 ? w * (end - t_) / t_ : 0;
+                  std::fprintf(stderr,
+                               "step %8u  t = %.4e s of %.4e s (%5.1f %%)  dt = %.3e s  energy error %+.2e  "
+                               "ETA %.0f s\n",
+                               step_, t_, end, 100. * t_ / end, dt_, energy_error_, eta);
+                  history_.flush();
+                }
+              if (integrator_.max_steps() > 0 && step_ >= integrator_.max_steps() && t_ < end * (1 - 1e-12))
+                result.status = "max steps reached";
+              stop = last;
+            }
+          }
+      }
+    catch (const fe::Instability &e)
+      {
+        result = {"unstable", e.what(), 3};
+      }
+    history_.close();
+    write_summary(result, std::chrono::duration<double>(Clock::now() - start).count());
+
+    if (rank == 0)
+      {
+        std::array<double, 11> max_time;
+        Utilities::MPI::max(ArrayView<const double>(phase_time_.data(), 11), comm_,
+                            ArrayView<double>(max_time.data(), 11));
+        std::cerr << "\nTime per phase (largest over ranks):\n";
+        double loop = 0;
+        for (unsigned int p = 1; p < 11; ++p)
+          loop += max_time[p];
+        for (unsigned int p = 0; p < 11; ++p)
+          if (max_time[p] > 0)
+            std::fprintf(stderr, "  %-18s %10.3f s  %5.1f %%\n", phase_names[p], max_time[p],
+                         p == 0 ? 0. : 100. * max_time[p] / loop);
+        if (phase_time_[5] > 0)
+          std::fprintf(stderr, "  FE force: %.3g element-steps/s (%.3f us per element-step)\n",
+                       double(n_elements) * step_ / max_time[5], 1e6 * max_time[5] / (double(n_elements) * step_));
+      }
+    else
+      {
+        Utilities::MPI::max(ArrayView<const double>(phase_time_.data(), 11), comm_,
+                            ArrayView<double>(phase_time_.data(), 11));
+      }
+    return result;
+  }
+
+  void
+  Simulation::record()
+  {
+    // One reduction of the energy terms and momentum.
+    const double local[8] = {balance_.kinetic,       internal_energy_,         hourglass_energy_,
+                             balance_.external_work, balance_.boundary_work,   balance_.momentum[0],
+                             balance_.momentum[1],   balance_.momentum[2]};
+    double       g[8];
+    Utilities::MPI::sum(ArrayView<const double>(local, 8), comm_, ArrayView<double>(g, 8));
+    const double kinetic = g[0], internal = g[1] + g[2], external = g[3], boundary = g[4];
+    const double reference = std::max(initial_energy_ + std::abs(external) + std::abs(boundary), kinetic);
+    energy_error_ = reference > 0 ? (kinetic + internal - initial_energy_ - external - boundary) / reference : 0.;
+    max_energy_error_ = std::max(max_energy_error_, std::abs(energy_error_));
+
+    const auto q = quantities_.evaluate(d_, v_now_);
+    if (q_final_.empty())
+      {
+        q_min_ = q;
+        q_max_ = q;
+      }
+    for (unsigned int i = 0; i < q.size(); ++i)
+      {
+        q_min_[i] = std::min(q_min_[i], q[i]);
+        q_max_[i] = std::max(q_max_[i], q[i]);
+      }
+    q_final_ = q;
+
+    if (Utilities::MPI::this_mpi_process(comm_) == 0)
+      {
+        char row[512];
+        std::snprintf(row, sizeof(row), "%.10e,%u,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e", t_,
+                      step_, dt_next_, kinetic, internal, g[2], external, boundary, energy_error_, g[5], g[6], g[7]);
+        history_ << row;
+        for (const double x : q)
+          {
+            std::snprintf(row, sizeof(row), ",%.10e", x);
+            history_ << row;
+          }
+        history_ << "\n";
+      }
+    if (!std::isfinite(kinetic) || !std::isfinite(internal))
+      throw fe::Instability("step " + std::to_string(step_) + ": non-finite energy (kinetic " +
+                            std::to_string(kinetic) + " J, internal " + std::to_string(internal) + " J)");
+    if (std::abs(energy_error_) > integrator_.energy_error_limit())
+      throw fe::Instability("step " + std::to_string(step_) + ", t = " + std::to_string(t_) +
+                            " s: energy error " + std::to_string(energy_error_) + " exceeds the limit " +
+                            std::to_string(integrator_.energy_error_limit()) + " (kinetic " +
+                            std::to_string(kinetic) + " J, internal " + std::to_string(internal) +
+                            " J, external work " + std::to_string(external) + " J, boundary work " +
+                            std::to_string(boundary) + " J)");
+  }
+
+  void
+  Simulation::write_summary(const RunResult &result, const double wall_time) const
+  {
+    std::array<double, 11> max_time;
+    Utilities::MPI::max(ArrayView<const double>(phase_time_.data(), 11), comm_,
+                        ArrayView<double>(max_time.data(), 11));
+    if (Utilities::MPI::this_mpi_process(comm_) != 0)
+      return;
+    const double       n_elements = discretization_.n_elements();
+    std::ostringstream j;
+    j << "{\n";
+    j << "  \"shard_version\": \"" << version_string << " (" << git_description << ")\",\n";
+    j << "  \"title\": \"" << json_escape(title_) << "\",\n";
+    j << "  \"parameter_file\": \"" << json_escape(source_.filename()) << "\",\n";
+    j << "  \"status\": \"" << result.status << "\",\n";
+    if (!result.message.empty())
+      j << "  \"message\": \"" << json_escape(result.message) << "\",\n";
+    j << "  \"steps\": " << step_ << ",\n";
+    j << "  \"final_time\": " << number(t_) << ",\n";
+    j << "  \"last_dt\": " << number(dt_) << ",\n";
+    j << "  \"wall_time_s\": " << number(wall_time + max_time[0]) << ",\n";
+    j << "  \"n_elements\": " << discretization_.n_elements() << ",\n";
+    j << "  \"n_particles\": 0,\n";
+    j << "  \"n_mpi_ranks\": " << Utilities::MPI::n_mpi_processes(comm_) << ",\n";
+    j << "  \"energy_error\": " << number(energy_error_) << ",\n";
+    j << "  \"max_abs_energy_error\": " << number(max_energy_error_) << ",\n";
+    j << "  \"element_steps_per_s\": " << number(max_time[5] > 0 ? n_elements * step_ / max_time[5] : 0) << ",\n";
+    j << "  \"us_per_element_step\": " << number(step_ > 0 ? 1e6 * max_time[5] / (n_elements * step_) : 0)
+      << ",\n";
+    j << "  \"phase_time_s\": {";
+    for (unsigned int p = 0; p < 11; ++p)
+      j << (p ? ", " : "") << "\"" << phase_names[p] << "\": " << number(max_time[p]);
+    j << "},\n";
+    j << "  \"results\": {";
+    const auto names = quantities_.names();
+    for (unsigned int i = 0; i < names.size(); ++i)
+      j << (i ? ", " : "") << "\"" << json_escape(names[i]) << "\": " << number(q_final_[i]) << ", \""
+        << json_escape(names[i]) << "_min\": " << number(q_min_[i]) << ", \"" << json_escape(names[i])
+        << "_max\": " << number(q_max_[i]);
+    j << "},\n";
+    j << "  \"files\": {\"history\": \"" << json_escape(output_.directory()) << "/history.csv\", \"fields\": \""
+      << json_escape(output_.pvd_path()) << "\", \"parameters\": \"" << json_escape(output_.directory())
+      << "/parameters.prm\"}\n";
+    j << "}\n";
+    output::write_file_atomically(output_.directory() + "/summary.json", j.str());
+  }
+} // namespace shard

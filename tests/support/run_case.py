@@ -1,0 +1,248 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Run a shard scene and check its history.csv (standard library only).
+
+A case directory holds <case>.prm and any of:
+  <case>.reference   CSV ('nan' skips a cell): a 'time' column and history columns with values from a closed form
+                     or published data (never shard's own output); history.csv is interpolated
+                     linearly at each reference time.
+  <case>.tolerances  CSV: column,abs,rel  -- a value passes when |x - r| <= abs + rel * |r|.
+  <case>.checks      JSON list of derived checks on the history:
+                       {"name", "type", "column", ..., "expected", "rel" | "abs", "source"}
+                     types: mean (from, to), first_crossing (level), last_crossing (level),
+                            max_abs, final, max, min; optional "scale" multiplies the value.
+  <case>.summary     JSON list of checks on summary.json: {"key", "expected", "rel" | "abs"};
+                     a key "results/x" looks into the results object.
+
+Options: --np N runs with mpiexec; --compare-ranks A B runs at both counts and requires the
+histories to agree to --rel (default 1e-8) relative to max(|a|, |b|, scale), where the scale of
+an energy column is the largest energy term of the run, of a momentum component the largest
+component, of the energy error 1, and of any other column its largest magnitude.
+--expect-exit K and --expect-message REGEX check a run that must fail.
+A failure prints case, column or check, row and both values, and exits 1.
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+
+
+def read_csv(path):
+    with open(path) as f:
+        rows = list(csv.reader(f))
+    header = [h.strip() for h in rows[0]]
+    data = [[float(x) for x in r] for r in rows[1:] if r]
+    return header, data
+
+
+def column(header, data, name):
+    if name not in header:
+        raise SystemExit(f"column '{name}' not in history (has {', '.join(header)})")
+    i = header.index(name)
+    return [r[i] for r in data]
+
+
+def interpolate(ts, ys, t):
+    if t <= ts[0]:
+        return ys[0]
+    for k in range(1, len(ts)):
+        if ts[k] >= t:
+            w = (t - ts[k - 1]) / (ts[k] - ts[k - 1]) if ts[k] > ts[k - 1] else 1.0
+            return ys[k - 1] + w * (ys[k] - ys[k - 1])
+    return ys[-1]
+
+
+def crossing(ts, ys, level, first=True):
+    """Time where ys crosses level (linear interpolation); first or last crossing."""
+    found = None
+    for k in range(1, len(ts)):
+        a, b = ys[k - 1] - level, ys[k] - level
+        if a == 0 or a * b < 0:
+            t = ts[k - 1] + (ts[k] - ts[k - 1]) * (a / (a - b) if a != b else 0.0)
+            if first:
+                return t
+            found = t
+    return found
+
+
+def run_shard(args, np, outdir, extra_sets=()):
+    cmd = []
+    if np > 0:
+        cmd = [args.mpiexec] + args.mpiexec_flags.split() + ["-np", str(np)]
+    prm = os.path.join(args.case, os.path.basename(os.path.normpath(args.case)) + ".prm")
+    cmd += [args.shard, "run", prm, "--set", f"J - Output/directory={outdir}",
+            "--set", "J - Output/progress interval=0"]
+    for s in list(args.set or []) + list(extra_sets):
+        cmd += ["--set", s]
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               DEAL_II_NUM_THREADS="1")
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    return p, cmd
+
+
+def check_value(failures, case, what, value, expected, tol_abs, tol_rel, row=None):
+    ok = math.isfinite(value) and abs(value - expected) <= tol_abs + tol_rel * abs(expected)
+    where = f" row {row}" if row is not None else ""
+    line = (f"{case}: {what}{where}: got {value:.8g}, expected {expected:.8g} "
+            f"(abs {tol_abs:g} + rel {tol_rel:g})")
+    print(("ok    " if ok else "FAIL  ") + line)
+    if not ok:
+        failures.append(line)
+
+
+def check_case(args, outdir, failures):
+    case = os.path.basename(os.path.normpath(args.case))
+    base = os.path.join(args.case, case)
+    header, data = read_csv(os.path.join(outdir, "history.csv"))
+    ts = column(header, data, "time")
+    if os.path.exists(base + ".reference"):
+        tol = {}
+        with open(base + ".tolerances") as f:
+            for r in csv.DictReader(f):
+                tol[r["column"].strip()] = (float(r["abs"]), float(r["rel"]))
+        rh, rd = read_csv(base + ".reference")
+        for k, row in enumerate(rd):
+            t = row[rh.index("time")]
+            for name, expected in zip(rh, row):
+                if name == "time" or math.isnan(expected):
+                    continue
+                a, r = tol[name]
+                value = interpolate(ts, column(header, data, name), t)
+                check_value(failures, case, f"{name} at t={t:g}", value, expected, a, r, k + 1)
+    if os.path.exists(base + ".checks"):
+        with open(base + ".checks") as f:
+            checks = json.load(f)
+        for c in checks:
+            ys = [y * c.get("scale", 1.0) for y in column(header, data, c["column"])]
+            kind = c["type"]
+            if kind == "mean":
+                sel = [y for t, y in zip(ts, ys) if c["from"] <= t <= c["to"]]
+                value = sum(sel) / len(sel)
+            elif kind in ("first_crossing", "last_crossing"):
+                value = crossing(ts, ys, c["level"], kind == "first_crossing")
+                value = float("nan") if value is None else value
+            elif kind == "max_abs":
+                value = max(abs(y) for y in ys)
+            elif kind == "max":
+                value = max(ys)
+            elif kind == "min":
+                value = min(ys)
+            elif kind == "final":
+                value = ys[-1]
+            else:
+                raise SystemExit(f"unknown check type {kind}")
+            check_value(failures, case, f"{c['name']} ({c.get('source', '')})", value, c["expected"],
+                        c.get("abs", 0.0), c.get("rel", 0.0))
+    if os.path.exists(base + ".summary"):
+        with open(os.path.join(outdir, "summary.json")) as f:
+            summary = json.load(f)
+        with open(base + ".summary") as f:
+            for c in json.load(f):
+                v = summary
+                for part in c["key"].split("/"):
+                    v = v[part]
+                if isinstance(c["expected"], str):
+                    ok = v == c["expected"]
+                    print(("ok    " if ok else "FAIL  ") + f"{case}: summary {c['key']} = {v}")
+                    if not ok:
+                        failures.append(f"{case}: summary {c['key']} = {v}, expected {c['expected']}")
+                else:
+                    check_value(failures, case, f"summary {c['key']}", float(v), c["expected"],
+                                c.get("abs", 0.0), c.get("rel", 0.0))
+
+
+def compare_histories(a, b, rel, failures, case):
+    ha, da = read_csv(os.path.join(a, "history.csv"))
+    hb, db = read_csv(os.path.join(b, "history.csv"))
+    if ha != hb or len(da) != len(db):
+        failures.append(f"{case}: histories differ in shape ({len(da)} vs {len(db)} rows)")
+        return
+    # Columns of one kind share a scale: an energy term is compared with the largest energy of
+    # the run, a momentum component with the largest component; the energy error is already
+    # relative (scale 1). Other columns use their own largest magnitude.
+    groups = {"energy": ["kinetic_energy", "internal_energy", "hourglass_energy", "external_work",
+                         "boundary_work"],
+              "momentum": ["momentum_x", "momentum_y", "momentum_z"]}
+
+    def magnitude(names):
+        idx = [ha.index(n) for n in names if n in ha]
+        return max([abs(r[j]) for r in da + db for j in idx] + [0.0])
+
+    worst = (0.0, None)
+    for j, name in enumerate(ha):
+        group = [g for g in groups.values() if name in g]
+        scale = 1.0 if name == "energy_error" else magnitude(group[0] if group else [name])
+        for k, (ra, rb) in enumerate(zip(da, db)):
+            x, y = ra[j], rb[j]
+            d = abs(x - y) / max(abs(x), abs(y), scale, 1e-300)
+            if d > worst[0]:
+                worst = (d, (name, k + 1, x, y))
+            if not d <= rel:
+                failures.append(f"{case}: column {name} row {k + 1}: {x!r} vs {y!r} (relative {d:.3g} > {rel:g})")
+                return
+    print(f"ok    {case}: histories agree, largest relative difference {worst[0]:.3g}"
+          + (f" ({worst[1][0]} row {worst[1][1]})" if worst[1] else ""))
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--shard", required=True)
+    ap.add_argument("--case", required=True)
+    ap.add_argument("--np", type=int, default=0)
+    ap.add_argument("--mpiexec", default="mpiexec")
+    ap.add_argument("--mpiexec-flags", default="--allow-run-as-root --oversubscribe")
+    ap.add_argument("--compare-ranks", type=int, nargs=2)
+    ap.add_argument("--rel", type=float, default=1e-8)
+    ap.add_argument("--set", action="append")
+    ap.add_argument("--expect-exit", type=int)
+    ap.add_argument("--expect-message")
+    ap.add_argument("--keep", action="store_true")
+    args = ap.parse_args()
+    case = os.path.basename(os.path.normpath(args.case))
+    tmp = tempfile.mkdtemp(prefix=f"shard-{case}-")
+    failures = []
+    try:
+        if args.compare_ranks:
+            dirs = []
+            for n in args.compare_ranks:
+                out = os.path.join(tmp, f"np{n}")
+                p, cmd = run_shard(args, n, out)
+                if p.returncode != 0:
+                    print(p.stdout, p.stderr)
+                    raise SystemExit(f"{case}: run at {n} ranks failed ({p.returncode}): {' '.join(cmd)}")
+                dirs.append(out)
+            compare_histories(dirs[0], dirs[1], args.rel, failures, case)
+        else:
+            out = os.path.join(tmp, "out")
+            p, cmd = run_shard(args, args.np, out)
+            if args.expect_exit is not None:
+                text = p.stdout + p.stderr
+                print(text.strip())
+                if p.returncode != args.expect_exit:
+                    failures.append(f"{case}: exit code {p.returncode}, expected {args.expect_exit}")
+                if args.expect_message and not re.search(args.expect_message, text):
+                    failures.append(f"{case}: message does not match /{args.expect_message}/")
+            else:
+                if p.returncode != 0:
+                    print(p.stdout, p.stderr)
+                    raise SystemExit(f"{case}: run failed ({p.returncode}): {' '.join(cmd)}")
+                check_case(args, out, failures)
+    finally:
+        if args.keep:
+            print("kept", tmp)
+        else:
+            shutil.rmtree(tmp, ignore_errors=True)
+    if failures:
+        print("\n".join("FAILED: " + f for f in failures))
+        sys.exit(1)
+    print(f"{case}: all checks passed")
+
+
+if __name__ == "__main__":
+    main()
