@@ -25,9 +25,14 @@ namespace shard::fe
       return false;
     declared_ = true;
     prm.enter_subsection("D - Finite elements");
+    prm.add_parameter("hourglass type", hourglass_type_,
+                      "Flanagan-Belytschko hourglass control: viscous (force q_hg rho c V^(2/3) / 4 times the "
+                      "hourglass velocity; no stiffening in plastic flow; like LS-DYNA type 2) "
+                      "or stiffness (forces grow with the hourglass displacement, stiffness "
+                      "q_hg rho c^2 (B:B) / (8 V); LS-DYNA type 4 analogue).",
+                      Patterns::Selection("viscous|stiffness"));
     prm.add_parameter("hourglass coefficient", hourglass_coefficient_,
-                      "Flanagan-Belytschko stiffness hourglass coefficient q_hg: the hourglass stiffness "
-                      "of each mode is q_hg rho c^2 (B:B) / (8 V). Unit: 1. Range: 0 to 0.3.",
+                      "Hourglass coefficient q_hg of the chosen form. Unit: 1. Range: 0 to 0.3.",
                       Patterns::Double(0, 0.3));
     prm.leave_subsection();
     return true;
@@ -45,6 +50,7 @@ namespace shard::fe
   HexForce::prepare(const mesh::Discretization &discretization, const materials::MaterialLibrary &library)
   {
     discretization_         = &discretization;
+    viscous_                = hourglass_type_ == "viscous";
     const auto &dh          = discretization.dof_handler();
     const auto &partitioner = *discretization.partitioner();
     const auto &X           = discretization.reference_positions();
@@ -293,22 +299,42 @@ namespace shard::fe
               // Stiffness hourglass control: the hourglass forces rotate with the element and
               // grow with the hourglass displacement increment.
               double      *h     = &hourglass_[12 * e];
-              double       b2    = 0;
-              for (unsigned int a = 0; a < 8; ++a)
-                b2 += s.B[a][0] * s.B[a][0] + s.B[a][1] * s.B[a][1] + s.B[a][2] * s.B[a][2];
-              const double stiffness = hourglass_coefficient_ * (rho0 / J[k]) * c[k] * c[k] * b2 / (8. * s.volume);
-              double       hg_work   = 0;
-              for (unsigned int m = 0; m < 4; ++m)
+              const double rho     = rho0 / J[k];
+              double       hg_work = 0;
+              if (viscous_)
                 {
-                  double r[3];
-                  for (unsigned int i = 0; i < 3; ++i)
-                    r[i] = s.rotation[i][0] * h[3 * m] + s.rotation[i][1] * h[3 * m + 1] +
-                           s.rotation[i][2] * h[3 * m + 2];
-                  for (unsigned int i = 0; i < 3; ++i)
+                  // Viscous form: the hourglass force follows the hourglass velocity. The
+                  // coefficient q rho c V^(2/3) / 4 stays bounded relative to the nodal mass when
+                  // the element flattens, so the damping term is stable at the element step.
+                  const double v13     = std::cbrt(s.volume);
+                  const double damping = 0.25 * hourglass_coefficient_ * rho * c[k] * v13 * v13;
+                  for (unsigned int m = 0; m < 4; ++m)
+                    for (unsigned int i = 0; i < 3; ++i)
+                      {
+                        h[3 * m + i] = damping * s.q[m][i];
+                        hg_work += dt * s.q[m][i] * h[3 * m + i];
+                      }
+                }
+              else
+                {
+                  // Stiffness form: the stored forces rotate with the element and grow with the
+                  // hourglass displacement increment.
+                  double b2 = 0;
+                  for (unsigned int a = 0; a < 8; ++a)
+                    b2 += s.B[a][0] * s.B[a][0] + s.B[a][1] * s.B[a][1] + s.B[a][2] * s.B[a][2];
+                  const double stiffness = hourglass_coefficient_ * rho * c[k] * c[k] * b2 / (8. * s.volume);
+                  for (unsigned int m = 0; m < 4; ++m)
                     {
-                      const double inc = stiffness * dt * s.q[m][i];
-                      h[3 * m + i]     = r[i] + inc;
-                      hg_work += dt * s.q[m][i] * (r[i] + 0.5 * inc);
+                      double r[3];
+                      for (unsigned int i = 0; i < 3; ++i)
+                        r[i] = s.rotation[i][0] * h[3 * m] + s.rotation[i][1] * h[3 * m + 1] +
+                               s.rotation[i][2] * h[3 * m + 2];
+                      for (unsigned int i = 0; i < 3; ++i)
+                        {
+                          const double inc = stiffness * dt * s.q[m][i];
+                          h[3 * m + i]     = r[i] + inc;
+                          hg_work += dt * s.q[m][i] * (r[i] + 0.5 * inc);
+                        }
                     }
                 }
               result.hourglass_energy += hg_work;

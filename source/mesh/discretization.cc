@@ -69,12 +69,14 @@ namespace shard::mesh
         }
       if (b.shape == "cylinder")
         {
-          // The coarse cylinder has 5 cells per cross-section, about 0.6 R wide.
+          // The coarse cylinder has 5 cells per cross-section; after n refinements the mean
+          // cell side in the cross-section is sqrt(pi R^2 / (5 4^n)) = 0.79 R / 2^n.
+          const double       side0 = std::sqrt(M_PI / 5.) * b.radius;
           const unsigned int n_ref =
             b.element_size > 0 ?
-              static_cast<unsigned int>(std::max(0., std::round(std::log2(0.6 * b.radius / b.element_size)))) :
+              static_cast<unsigned int>(std::max(0., std::round(std::log2(side0 / b.element_size)))) :
               b.refinement;
-          const double   axial = b.element_size > 0 ? b.element_size : 0.6 * b.radius / (1 << n_ref);
+          const double axial = b.element_size > 0 ? b.element_size : side0 / (1 << n_ref);
           const unsigned int n_axial = std::max(
             1u, static_cast<unsigned int>(std::round(b.length / (axial * (1 << n_ref)))));
           GridGenerator::subdivided_cylinder(tria, n_axial, b.radius, b.length / 2);

@@ -137,7 +137,9 @@ namespace shard::fe
       std::vector<double>        state;
     };
 
-    double hourglass_coefficient_ = 0.05;
+    std::string hourglass_type_        = "viscous";
+    bool        viscous_               = true;
+    double      hourglass_coefficient_ = 0.1;
     bool   declared_              = false;
 
     const mesh::Discretization *discretization_ = nullptr;
@@ -148,7 +150,7 @@ namespace shard::fe
     std::vector<unsigned int>   group_of_;   // group index per element
     std::vector<double>         volume0_;
     std::vector<double>         stress_;     // 6 per element
-    std::vector<double>         hourglass_;  // 12 per element: hourglass force per mode and direction
+    std::vector<double>         hourglass_;  // 12 per element: hourglass force per mode and direction (stiffness form)
     std::vector<Group>          groups_;
 
     [[noreturn]] void

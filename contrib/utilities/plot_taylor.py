@@ -1,0 +1,33 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Plot impact-face radius and bar length against time for each run of contrib/taylor_study."""
+import csv
+import glob
+import os
+import sys
+
+import matplotlib
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+
+study, png = sys.argv[1], sys.argv[2]
+fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
+for d in sorted(glob.glob(os.path.join(study, "h*")), key=lambda p: -float(os.path.basename(p)[1:])):
+    rows = list(csv.DictReader(open(os.path.join(d, "history.csv"))))
+    t = [1e6 * float(r["time"]) for r in rows]
+    label = f"h = {os.path.basename(d)[1:]} mm"
+    ax1.plot(t, [1e3 * float(r["impact_radius"]) for r in rows], label=label)
+    ax2.plot(t, [1e3 * float(r["length"]) for r in rows], label=label)
+for ax, name, ref in ((ax1, "impact-face radius (mm)", [(7.12, "Simo 1992"), (7.22, "Foulk et al. 2021, converged Q1/P0")]),
+                      (ax2, "bar length (mm)", [])):
+    for value, source in ref:
+        ax.axhline(value, ls=":", color="gray")
+        ax.annotate(source, (2, value), fontsize=7, color="gray", va="bottom")
+    ax.set_xlabel("time (us)")
+    ax.set_ylabel(name)
+    ax.grid(alpha=0.3)
+    ax.legend()
+fig.suptitle("Copper Taylor bar, 227 m/s, bilinear J2 (prm/benchmarks/taylor_bar.prm)")
+fig.tight_layout()
+fig.savefig(png, dpi=120)
+print("wrote", png)
