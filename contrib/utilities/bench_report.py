@@ -6,7 +6,6 @@ import datetime
 import glob
 import json
 import os
-import platform
 import re
 import statistics
 import subprocess
@@ -48,8 +47,8 @@ for name, runs in groups.items():
 with open(csv_path, "w") as f:
     f.write(header + "\n" + "\n".join(rows) + "\n")
 
-table = [f"Measured {datetime.date.today()} on {cpu}, 1 MPI rank, 1 thread, commit {commit}, "
-         f"{platform.python_implementation()} report; medians of the runs (range in parentheses).", "",
+table = [f"Measured {datetime.date.today()} on {cpu}, 1 MPI rank, 1 thread, commit {commit}; "
+         f"medians of the runs (range in parentheses).", "",
          "| material | elements | steps | runs | element-steps/s | us per element-step (phase 5) | "
          + " | ".join(f"{p} (s)" for p in phases) + " |",
          "|---" * (6 + len(phases)) + "|"] + lines

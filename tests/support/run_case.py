@@ -2,7 +2,7 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """Run a shard scene and check its history.csv (standard library only).
 
-A case directory holds <case>.prm and any of:
+A case is a directory holding <case>.prm, or a path <case>.prm; beside the .prm any of:
   <case>.reference   CSV ('nan' skips a cell): a 'time' column and history columns with values from a closed form
                      or published data (never shard's own output); history.csv is interpolated
                      linearly at each reference time.
@@ -10,7 +10,7 @@ A case directory holds <case>.prm and any of:
   <case>.checks      JSON list of derived checks on the history:
                        {"name", "type", "column", ..., "expected", "rel" | "abs", "source"}
                      types: mean (from, to), first_crossing (level), last_crossing (level),
-                            max_abs, final, max, min; optional "scale" multiplies the value.
+                            max_abs (optional from), final, max, min; optional "scale" multiplies the value.
   <case>.summary     JSON list of checks on summary.json: {"key", "expected", "rel" | "abs"};
                      a key "results/x" looks into the results object.
 
@@ -75,8 +75,7 @@ def run_shard(args, np, outdir, extra_sets=()):
     cmd = []
     if np > 0:
         cmd = [args.mpiexec] + args.mpiexec_flags.split() + ["-np", str(np)]
-    prm = os.path.join(args.case, os.path.basename(os.path.normpath(args.case)) + ".prm")
-    cmd += [args.shard, "run", prm, "--set", f"J - Output/directory={outdir}",
+    cmd += [args.shard, "run", case_base(args) + ".prm", "--set", f"J - Output/directory={outdir}",
             "--set", "J - Output/progress interval=0"]
     for s in list(args.set or []) + list(extra_sets):
         cmd += ["--set", s]
@@ -96,9 +95,16 @@ def check_value(failures, case, what, value, expected, tol_abs, tol_rel, row=Non
         failures.append(line)
 
 
+def case_base(args):
+    """Path of the case files without extension: --case DIR/<DIR name> or --case FILE.prm."""
+    if args.case.endswith(".prm"):
+        return args.case[:-4]
+    return os.path.join(args.case, os.path.basename(os.path.normpath(args.case)))
+
+
 def check_case(args, outdir, failures):
-    case = os.path.basename(os.path.normpath(args.case))
-    base = os.path.join(args.case, case)
+    base = case_base(args)
+    case = os.path.basename(base)
     header, data = read_csv(os.path.join(outdir, "history.csv"))
     ts = column(header, data, "time")
     if os.path.exists(base + ".reference"):
@@ -128,7 +134,7 @@ def check_case(args, outdir, failures):
                 value = crossing(ts, ys, c["level"], kind == "first_crossing")
                 value = float("nan") if value is None else value
             elif kind == "max_abs":
-                value = max(abs(y) for y in ys)
+                value = max(abs(y) for t, y in zip(ts, ys) if t >= c.get("from", ts[0]))
             elif kind == "max":
                 value = max(ys)
             elif kind == "min":
@@ -204,7 +210,7 @@ def main():
     ap.add_argument("--expect-message")
     ap.add_argument("--keep", action="store_true")
     args = ap.parse_args()
-    case = os.path.basename(os.path.normpath(args.case))
+    case = os.path.basename(case_base(args))
     tmp = tempfile.mkdtemp(prefix=f"shard-{case}-")
     failures = []
     try:
