@@ -368,16 +368,20 @@ namespace shard
           }
         history_ << "\n";
       }
+    const auto g6 = [](const double x) {
+      std::ostringstream out;
+      out << std::setprecision(6) << x;
+      return out.str();
+    };
     if (!std::isfinite(kinetic) || !std::isfinite(internal))
-      throw fe::Instability("step " + std::to_string(step_) + ": non-finite energy (kinetic " +
-                            std::to_string(kinetic) + " J, internal " + std::to_string(internal) + " J)");
+      throw fe::Instability("step " + std::to_string(step_) + ", t = " + g6(t_) + " s: non-finite energy (kinetic " +
+                            g6(kinetic) + " J, internal " + g6(internal) + " J)");
     if (std::abs(energy_error_) > integrator_.energy_error_limit())
-      throw fe::Instability("step " + std::to_string(step_) + ", t = " + std::to_string(t_) +
-                            " s: energy error " + std::to_string(energy_error_) + " exceeds the limit " +
-                            std::to_string(integrator_.energy_error_limit()) + " (kinetic " +
-                            std::to_string(kinetic) + " J, internal " + std::to_string(internal) +
-                            " J, external work " + std::to_string(external) + " J, boundary work " +
-                            std::to_string(boundary) + " J)");
+      throw fe::Instability("step " + std::to_string(step_) + ", t = " + g6(t_) + " s: energy error " +
+                            g6(energy_error_) + " exceeds the limit " + g6(integrator_.energy_error_limit()) +
+                            " (kinetic " + g6(kinetic) + " J, internal " + g6(internal) + " J, external work " +
+                            g6(external) + " J, boundary work " + g6(boundary) + " J, initial kinetic " +
+                            g6(initial_energy_) + " J)");
   }
 
   void
