@@ -18,11 +18,12 @@ for d in sorted(glob.glob(os.path.join(study, "h*")), key=lambda p: -float(os.pa
     label = f"h = {os.path.basename(d)[1:]} mm"
     ax1.plot(t, [1e3 * float(r["impact_radius"]) for r in rows], label=label)
     ax2.plot(t, [1e3 * float(r["length"]) for r in rows], label=label)
-for ax, name, ref in ((ax1, "impact-face radius (mm)", [(7.12, "Simo 1992"), (7.22, "Foulk et al. 2021, converged Q1/P0")]),
+for ax, name, ref in ((ax1, "impact-face radius (mm)", [(7.12, "Simo 1992", "top"),
+                                                        (7.22, "Foulk et al. 2021, converged Q1/P0", "bottom")]),
                       (ax2, "bar length (mm)", [])):
-    for value, source in ref:
+    for value, source, where in ref:
         ax.axhline(value, ls=":", color="gray")
-        ax.annotate(source, (2, value), fontsize=7, color="gray", va="bottom")
+        ax.annotate(source, (2, value), fontsize=7, color="gray", va=where)
     ax.set_xlabel("time (us)")
     ax.set_ylabel(name)
     ax.grid(alpha=0.3)

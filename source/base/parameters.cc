@@ -64,6 +64,22 @@ namespace shard::base
     return rows;
   }
 
+  void
+  check_names(const PrmSource &source, const std::string &path, const std::string &text,
+              const std::vector<std::string> &names, const bool allow_empty)
+  {
+    if (names.empty() && !allow_empty)
+      source.fail(path, text, "at least one name is required.");
+    std::set<std::string> seen;
+    for (const auto &name : names)
+      {
+        if (!std::regex_match(name, std::regex("[A-Za-z0-9_-]+")))
+          source.fail(path, text, "'" + name + "' may use letters, digits, '_' and '-' only.");
+        if (!seen.insert(name).second)
+          source.fail(path, text, "'" + name + "' appears twice.");
+      }
+  }
+
   std::array<double, 3>
   parse_point(const std::string &text)
   {

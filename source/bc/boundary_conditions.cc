@@ -4,8 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <regex>
-#include <set>
 
 namespace shard::bc
 {
@@ -60,15 +58,10 @@ namespace shard::bc
   void
   BoundaryConditions::check_parameters(const base::PrmSource &source) const
   {
-    const std::string     top = "H - Boundary conditions/";
-    std::set<std::string> seen;
+    const std::string top = "H - Boundary conditions/";
+    base::check_names(source, top + "condition names", names_text_, names_, true);
     for (const auto &name : names_)
       {
-        if (!std::regex_match(name, std::regex("[A-Za-z0-9_-]+")))
-          source.fail(top + "condition names", names_text_,
-                      "'" + name + "' may use letters, digits, '_' and '-' only.");
-        if (!seen.insert(name).second)
-          source.fail(top + "condition names", names_text_, "'" + name + "' appears twice.");
         const auto       &c    = *params_.at(name);
         const std::string path = top + name + "/";
         if (c.type == "fixed" || c.type == "velocity")

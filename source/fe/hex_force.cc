@@ -118,7 +118,8 @@ namespace shard::fe
         auto &grp = groups_[g];
         grp.begin = std::find(group_of_.begin(), group_of_.end(), g) - group_of_.begin();
         grp.end   = grp.begin + std::count(group_of_.begin(), group_of_.end(), g);
-        grp.n_slots = grp.material->n_state_slots();
+        grp.slot_names = grp.material->state_slot_names();
+        grp.n_slots    = grp.slot_names.size();
         grp.state.assign(static_cast<std::size_t>(grp.end - grp.begin) * grp.n_slots, 0.);
         grp.material->initialize_state(grp.end - grp.begin, grp.state.data());
       }
@@ -156,9 +157,11 @@ namespace shard::fe
   double
   HexForce::state_value(const unsigned int e, const std::string &name) const
   {
-    const auto &grp  = groups_[group_of_[e]];
-    const int   slot = grp.material->state_slot(name);
-    return slot < 0 ? 0. : grp.state[static_cast<std::size_t>(e - grp.begin) * grp.n_slots + slot];
+    const auto &grp = groups_[group_of_[e]];
+    const auto  it  = std::find(grp.slot_names.begin(), grp.slot_names.end(), name);
+    return it == grp.slot_names.end() ?
+             0. :
+             grp.state[static_cast<std::size_t>(e - grp.begin) * grp.n_slots + (it - grp.slot_names.begin())];
   }
 
   void

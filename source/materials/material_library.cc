@@ -1,8 +1,6 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/materials/material_library.h>
 
-#include <regex>
-#include <set>
 
 namespace shard::materials
 {
@@ -50,16 +48,9 @@ namespace shard::materials
   MaterialLibrary::check_parameters(const base::PrmSource &source) const
   {
     const std::string top = "C - Materials/";
-    if (names_.empty())
-      source.fail(top + "material names", names_text_, "at least one material name is required.");
-    std::set<std::string> seen;
+    base::check_names(source, top + "material names", names_text_, names_, false);
     for (const auto &name : names_)
       {
-        if (!std::regex_match(name, std::regex("[A-Za-z0-9_-]+")))
-          source.fail(top + "material names", names_text_,
-                      "'" + name + "' may use letters, digits, '_' and '-' only.");
-        if (!seen.insert(name).second)
-          source.fail(top + "material names", names_text_, "'" + name + "' appears twice.");
         const auto &e = entries_.at(name);
         if (e.declared_model != e.model)
           source.fail(top + name + "/model", e.model,

@@ -180,16 +180,9 @@ namespace shard::mesh
   Discretization::check_parameters(const base::PrmSource &source) const
   {
     const std::string top = "B - Mesh/";
-    if (body_names_.empty())
-      source.fail(top + "body names", body_names_text_, "at least one body name is required.");
-    std::set<std::string> seen;
+    base::check_names(source, top + "body names", body_names_text_, body_names_, false);
     for (const auto &name : body_names_)
       {
-        if (!std::regex_match(name, std::regex("[A-Za-z0-9_-]+")))
-          source.fail(top + "body names", body_names_text_,
-                      "'" + name + "' may use letters, digits, '_' and '-' only.");
-        if (!seen.insert(name).second)
-          source.fail(top + "body names", body_names_text_, "'" + name + "' appears twice.");
         const auto       &b    = *declared_.at(name);
         const std::string path = top + name + "/";
         const auto        point = [&](const std::string &key, const std::string &value) {

@@ -147,6 +147,15 @@ namespace shard::base
   std::array<double, 3>
   parse_point(const std::string &text);
 
+  /**
+   * @brief Checks a comma-separated list of names (bodies, materials, conditions) set at
+   * @p path: each name uses letters, digits, '_' and '-' only and appears once; an empty list
+   * is rejected unless @p allow_empty. Throws InputError through @p source.
+   */
+  void
+  check_names(const PrmSource &source, const std::string &path, const std::string &text,
+              const std::vector<std::string> &names, bool allow_empty);
+
   /// Splits @p text at @p separator and trims white space; empty items are dropped.
   std::vector<std::string>
   split(const std::string &text, char separator);

@@ -134,6 +134,7 @@ namespace shard::fe
       const materials::Material *material = nullptr;
       unsigned int               begin = 0, end = 0;
       unsigned int               n_slots = 0;
+      std::vector<std::string>   slot_names;
       std::vector<double>        state;
     };
 
