@@ -1,0 +1,93 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+/**
+ * @file spg_kernel.h
+ * @brief The two-pass kinematics and internal force of the direct displacement smoothing
+ *        (SPG) formulation on CSR stencils, in local indices (formulation.md section 3).
+ * @ingroup particles
+ *
+ * With A the RK interpolation at the particles (row J: Psi_K(X_J)) and G the gradients of the
+ * smoothing functions at the integration points (row I: grad Psi~_J(X_I)):
+ * - pass 1: u_J = sum_K A_JK d_K (physical displacement at every particle);
+ * - pass 2: F_I = I + sum_J u_J (x) G_IJ;
+ * - scatter 1: g_J = sum_I G_IJ^T (V_I P_I), i.e. g_Jk = sum_I V_I P_I,kl G_IJ,l;
+ * - scatter 2: f_K = sum_J A_JK g_J.
+ * The scatters are the exact transposes of the passes, so f = dW/dd for W = sum_I V_I W(F_I).
+ * Each scatter runs as a gather over a transposed index, so it is race-free under threads.
+ */
+#pragma once
+
+#include <vector>
+
+namespace shard::particles
+{
+  /// A read-only view of a CSR matrix with @p width doubles per entry.
+  struct CsrView
+  {
+    /// Number of rows.
+    unsigned int n_rows = 0;
+    /// Row offsets, n_rows + 1 entries.
+    const unsigned int *offsets = nullptr;
+    /// Column of each entry.
+    const unsigned int *columns = nullptr;
+    /// Values, width per entry.
+    const double *values = nullptr;
+    /// Doubles per entry (1 for Psi, 3 for a gradient).
+    unsigned int width = 1;
+  };
+
+  /**
+   * @brief Two-pass SPG evaluation on fixed stencils (total-Lagrangian: built once).
+   */
+  class SpgKernel
+  {
+  public:
+    /**
+     * @brief Stores the stencils and builds the transposed indices.
+     * @param interpolation A, width 1: rows are particles J, columns coefficients K
+     * @param smoothing_gradient G, width 3: rows are integration points I, columns particles J
+     * @param n_coefficients number of coefficients K (columns of A)
+     */
+    void
+    reinit(const CsrView &interpolation, const CsrView &smoothing_gradient, unsigned int n_coefficients);
+
+    /// Pass 1: u (3 per particle J) from the coefficients d (3 per K).
+    void
+    interpolate(const double *d, double *u) const;
+
+    /// Pass 2: F (9 per integration point I, row-major F_ij) from u.
+    void
+    deformation_gradient(const double *u, double *F) const;
+
+    /**
+     * @brief Scatters 1 and 2 as gathers: f_K = sum_J A_JK sum_I V_I P_I G_IJ.
+     * @param VP volume times first Piola-Kirchhoff stress, 9 per integration point (row-major)
+     * @param[out] f internal force, 3 per coefficient; overwritten. The force acting on the
+     *             coefficients is -f.
+     */
+    void
+    internal_force(const double *VP, double *f) const;
+
+    /// Number of particles J (rows of A).
+    unsigned int
+    n_particles() const
+    {
+      return a_.n_rows;
+    }
+
+    /// Number of integration points I (rows of G).
+    unsigned int
+    n_points() const
+    {
+      return g_.n_rows;
+    }
+
+  private:
+    CsrView a_, g_;
+    unsigned int n_coefficients_ = 0;
+    // Transposed indices: for column c, the entries (row, entry index) that reference it.
+    std::vector<unsigned int> at_offsets_, at_rows_, at_entries_;
+    std::vector<unsigned int> gt_offsets_, gt_rows_, gt_entries_;
+    // Scratch of scatter 1.
+    mutable std::vector<double> g_scratch_;
+  };
+} // namespace shard::particles

@@ -1,0 +1,129 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/particles/spg_kernel.h>
+
+#include <stdexcept>
+
+namespace shard::particles
+{
+  namespace
+  {
+    /// Builds the transposed index of @p m with @p n_columns columns.
+    void
+    transpose(const CsrView &m, const unsigned int n_columns, std::vector<unsigned int> &offsets,
+              std::vector<unsigned int> &rows, std::vector<unsigned int> &entries)
+    {
+      offsets.assign(n_columns + 1, 0);
+      const unsigned int n_entries = m.offsets[m.n_rows];
+      for (unsigned int e = 0; e < n_entries; ++e)
+        {
+          if (m.columns[e] >= n_columns)
+            throw std::out_of_range("SpgKernel: stencil column out of range");
+          ++offsets[m.columns[e] + 1];
+        }
+      for (unsigned int c = 0; c < n_columns; ++c)
+        offsets[c + 1] += offsets[c];
+      rows.resize(n_entries);
+      entries.resize(n_entries);
+      std::vector<unsigned int> next(offsets.begin(), offsets.end() - 1);
+      // Rows in increasing order, so each transposed row lists its entries in a fixed order:
+      // results do not depend on how the forward rows were distributed.
+      for (unsigned int r = 0; r < m.n_rows; ++r)
+        for (unsigned int e = m.offsets[r]; e < m.offsets[r + 1]; ++e)
+          {
+            const unsigned int slot = next[m.columns[e]]++;
+            rows[slot]              = r;
+            entries[slot]           = e;
+          }
+    }
+  } // namespace
+
+  void
+  SpgKernel::reinit(const CsrView &interpolation, const CsrView &smoothing_gradient,
+                    const unsigned int n_coefficients)
+  {
+    if (interpolation.width != 1 || smoothing_gradient.width != 3)
+      throw std::invalid_argument("SpgKernel: A needs width 1 and G width 3");
+    a_              = interpolation;
+    g_              = smoothing_gradient;
+    n_coefficients_ = n_coefficients;
+    transpose(a_, n_coefficients, at_offsets_, at_rows_, at_entries_);
+    transpose(g_, a_.n_rows, gt_offsets_, gt_rows_, gt_entries_);
+    g_scratch_.assign(3 * a_.n_rows, 0.);
+  }
+
+  void
+  SpgKernel::interpolate(const double *d, double *u) const
+  {
+    for (unsigned int j = 0; j < a_.n_rows; ++j)
+      {
+        double s0 = 0, s1 = 0, s2 = 0;
+        for (unsigned int e = a_.offsets[j]; e < a_.offsets[j + 1]; ++e)
+          {
+            const double  w  = a_.values[e];
+            const double *dk = d + 3 * a_.columns[e];
+            s0 += w * dk[0];
+            s1 += w * dk[1];
+            s2 += w * dk[2];
+          }
+        u[3 * j]     = s0;
+        u[3 * j + 1] = s1;
+        u[3 * j + 2] = s2;
+      }
+  }
+
+  void
+  SpgKernel::deformation_gradient(const double *u, double *F) const
+  {
+    for (unsigned int i = 0; i < g_.n_rows; ++i)
+      {
+        double f[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+        for (unsigned int e = g_.offsets[i]; e < g_.offsets[i + 1]; ++e)
+          {
+            const double *gr = g_.values + 3 * e;
+            const double *uj = u + 3 * g_.columns[e];
+            for (unsigned int a = 0; a < 3; ++a)
+              for (unsigned int b = 0; b < 3; ++b)
+                f[3 * a + b] += uj[a] * gr[b];
+          }
+        for (unsigned int k = 0; k < 9; ++k)
+          F[9 * i + k] = f[k];
+      }
+  }
+
+  void
+  SpgKernel::internal_force(const double *VP, double *f) const
+  {
+    // Scatter 1 as a gather over the transposed G: g_J = sum_I (V P)_I G_IJ.
+    double *g = g_scratch_.data();
+    for (unsigned int j = 0; j < a_.n_rows; ++j)
+      {
+        double s[3] = {0, 0, 0};
+        for (unsigned int t = gt_offsets_[j]; t < gt_offsets_[j + 1]; ++t)
+          {
+            const double *p  = VP + 9 * gt_rows_[t];
+            const double *gr = g_.values + 3 * gt_entries_[t];
+            for (unsigned int a = 0; a < 3; ++a)
+              s[a] += p[3 * a] * gr[0] + p[3 * a + 1] * gr[1] + p[3 * a + 2] * gr[2];
+          }
+        g[3 * j]     = s[0];
+        g[3 * j + 1] = s[1];
+        g[3 * j + 2] = s[2];
+      }
+    // Scatter 2 as a gather over the transposed A: f_K = sum_J A_JK g_J.
+    for (unsigned int k = 0; k < n_coefficients_; ++k)
+      {
+        double s0 = 0, s1 = 0, s2 = 0;
+        for (unsigned int t = at_offsets_[k]; t < at_offsets_[k + 1]; ++t)
+          {
+            const double  w  = a_.values[at_entries_[t]];
+            const double *gj = g + 3 * at_rows_[t];
+            s0 += w * gj[0];
+            s1 += w * gj[1];
+            s2 += w * gj[2];
+          }
+        f[3 * k]     = s0;
+        f[3 * k + 1] = s1;
+        f[3 * k + 2] = s2;
+      }
+  }
+} // namespace shard::particles
