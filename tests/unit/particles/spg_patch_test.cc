@@ -32,7 +32,7 @@ namespace
       for (unsigned int k = 0; k < n; ++k)
         for (unsigned int j = 0; j < n; ++j)
           for (unsigned int i = 0; i < n; ++i)
-            x.push_back({i * h + jitter(rng), j * h + jitter(rng), k * h + jitter(rng)});
+            x.push_back(Point3{{i * h + jitter(rng), j * h + jitter(rng), k * h + jitter(rng)}});
       RkParameters params;
       params.dilation = dilation;
       params.support  = support;
