@@ -2,7 +2,6 @@
 #include <shard/base/function.h>
 #include <shard/mesh/discretization.h>
 
-#include <deal.II/base/function_parser.h>
 #include <deal.II/dofs/dof_tools.h>
 #include <deal.II/fe/fe_q.h>
 #include <deal.II/grid/grid_generator.h>

@@ -3,7 +3,6 @@
 #include <shard/base/version.h>
 #include <shard/simulation/simulation.h>
 
-#include <deal.II/base/function_parser.h>
 #include <deal.II/base/mpi.h>
 
 #include <chrono>

@@ -121,13 +121,6 @@ namespace shard::fe
       return body_[e];
     }
 
-    /// Hourglass coefficient in use.
-    double
-    hourglass_coefficient() const
-    {
-      return hourglass_coefficient_;
-    }
-
   private:
     struct Group
     {
@@ -151,7 +144,7 @@ namespace shard::fe
     std::vector<unsigned int>   group_of_;   // group index per element
     std::vector<double>         volume0_;
     std::vector<double>         stress_;     // 6 per element
-    std::vector<double>         hourglass_;  // 12 per element: hourglass force per mode and direction (stiffness form)
+    std::vector<double>         hourglass_;  // 12 per element: hourglass force per mode and direction (both forms)
     std::vector<Group>          groups_;
 
     [[noreturn]] void

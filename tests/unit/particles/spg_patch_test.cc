@@ -36,7 +36,7 @@ namespace
       RkParameters params;
       params.dilation = dilation;
       params.support  = support;
-      const std::vector<Point3> spacing(x.size(), Point3{h, h, h});
+      const std::vector<Point3> spacing(x.size(), Point3{{h, h, h}});
       const auto                radii     = support_radii_from_spacing(spacing, params);
       const auto                neighbors = find_support_neighbors(x, x, radii, support);
       stencil                             = build_rk_stencil(x, x, radii, neighbors, params);
