@@ -91,10 +91,8 @@ namespace shard::particles
   }
 
   void
-  SpgKernel::internal_force(const double *VP, double *f) const
+  SpgKernel::gradient_transpose(const double *VP, double *g) const
   {
-    // Scatter 1 as a gather over the transposed G: g_J = sum_I (V P)_I G_IJ.
-    double *g = g_scratch_.data();
     for (unsigned int j = 0; j < a_.n_rows; ++j)
       {
         double s[3] = {0, 0, 0};
@@ -109,21 +107,51 @@ namespace shard::particles
         g[3 * j + 1] = s[1];
         g[3 * j + 2] = s[2];
       }
-    // Scatter 2 as a gather over the transposed A: f_K = sum_J A_JK g_J.
+  }
+
+  void
+  SpgKernel::interpolate_transpose(const double *g, double *f, const unsigned int width) const
+  {
+    if (width == 3)
+      {
+        for (unsigned int k = 0; k < n_coefficients_; ++k)
+          {
+            double s0 = 0, s1 = 0, s2 = 0;
+            for (unsigned int t = at_offsets_[k]; t < at_offsets_[k + 1]; ++t)
+              {
+                const double  w  = a_.values[at_entries_[t]];
+                const double *gj = g + 3 * at_rows_[t];
+                s0 += w * gj[0];
+                s1 += w * gj[1];
+                s2 += w * gj[2];
+              }
+            f[3 * k]     = s0;
+            f[3 * k + 1] = s1;
+            f[3 * k + 2] = s2;
+          }
+        return;
+      }
+    if (width == 0 || width > 9)
+      throw std::invalid_argument("SpgKernel::interpolate_transpose: width must be 1 to 9");
     for (unsigned int k = 0; k < n_coefficients_; ++k)
       {
-        double s0 = 0, s1 = 0, s2 = 0;
+        double s[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
         for (unsigned int t = at_offsets_[k]; t < at_offsets_[k + 1]; ++t)
           {
             const double  w  = a_.values[at_entries_[t]];
-            const double *gj = g + 3 * at_rows_[t];
-            s0 += w * gj[0];
-            s1 += w * gj[1];
-            s2 += w * gj[2];
+            const double *gj = g + width * at_rows_[t];
+            for (unsigned int c = 0; c < width; ++c)
+              s[c] += w * gj[c];
           }
-        f[3 * k]     = s0;
-        f[3 * k + 1] = s1;
-        f[3 * k + 2] = s2;
+        for (unsigned int c = 0; c < width; ++c)
+          f[width * k + c] = s[c];
       }
+  }
+
+  void
+  SpgKernel::internal_force(const double *VP, double *f) const
+  {
+    gradient_transpose(VP, g_scratch_.data());
+    interpolate_transpose(g_scratch_.data(), f, 3);
   }
 } // namespace shard::particles

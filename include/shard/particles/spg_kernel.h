@@ -67,6 +67,41 @@ namespace shard::particles
     void
     internal_force(const double *VP, double *f) const;
 
+    /**
+     * @brief Scatter 1 alone: g_J = sum_I G_IJ^T (V P)_I, 3 per particle J (all n_particles()
+     * rows are written).
+     */
+    void
+    gradient_transpose(const double *VP, double *g) const;
+
+    /**
+     * @brief Scatter 2 alone, for @p width doubles per row: f_K = sum_J A_JK g_J, written for
+     * every coefficient K (n_coefficients() entries of @p width).
+     */
+    void
+    interpolate_transpose(const double *g, double *f, unsigned int width = 3) const;
+
+    /// Number of coefficients K (columns of A).
+    unsigned int
+    n_coefficients() const
+    {
+      return n_coefficients_;
+    }
+
+    /// The interpolation stencil A.
+    const CsrView &
+    interpolation() const
+    {
+      return a_;
+    }
+
+    /// The smoothing-gradient stencil G.
+    const CsrView &
+    smoothing_gradient() const
+    {
+      return g_;
+    }
+
     /// Number of particles J (rows of A).
     unsigned int
     n_particles() const

@@ -1,0 +1,208 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+/**
+ * @file spg_operator.h
+ * @brief The particle formulation on local compact arrays: local stencils from a particle
+ *        cloud, the two-level (or single-level DNI) kinematics, the internal force with the
+ *        variationally consistent gradient correction, the residual stabilization and the
+ *        displacement smoothing filter (formulation.md section 3; doc/theory/spg_stabilization.md).
+ * @ingroup particles
+ *
+ * Index spaces (all local to one rank):
+ * - K, the coefficients: every particle whose coefficient d_K enters a local row, 0..n_k;
+ * - J, the particles at which the physical displacement u_J = sum_K A_JK d_K is evaluated:
+ *   the first n_j coefficients (J and K share their numbering below n_j);
+ * - I, the integration points: the owned particles, the first n_i coefficients.
+ * A has n_j rows and n_k columns, G (grad Psi~ at X_I) n_i rows and n_j columns. Products
+ * over the owned rows are partial sums across ranks; the caller adds them up (compress).
+ *
+ * Nothing here depends on deal.II: the same code runs in the solver and in the unit tests
+ * (spectral, patch and energy tests assemble stiffness matrices through it).
+ */
+#pragma once
+
+#include <shard/particles/rk_shape.h>
+#include <shard/particles/spg_kernel.h>
+
+#include <vector>
+
+namespace shard::particles
+{
+  /// How the nodal deformation gradient is formed.
+  enum class Smoothing
+  {
+    /// Direct nodal integration of the RK functions: u_J = d_J, F_I = I + sum_J d_J (x) grad Psi_J(X_I).
+    none,
+    /// Two-level smoothed functions: u = A d, F_I = I + sum_J u_J (x) grad Psi~_J(X_I).
+    two_level
+  };
+
+  /// Remedy against zero-energy (odd-even) modes, formulation.md section 3.
+  enum class Stabilization
+  {
+    /// R0: none.
+    none,
+    /// R1: every N steps the coefficients and their velocities are replaced by A d, A v.
+    filter,
+    /// R2: residual force f = -alpha (I - A)^T Lambda (I - A) d.
+    residual
+  };
+
+  /// Options of the formulation (subsection `F - Particle formulation`).
+  struct FormulationOptions
+  {
+    Smoothing     smoothing           = Smoothing::two_level;
+    Stabilization stabilization       = Stabilization::residual;
+    /// alpha of R2 (unit 1).
+    double residual_coefficient = 0.1;
+    /// N of R1 (steps).
+    unsigned int filter_interval = 15;
+    /// Petrov-Galerkin variationally consistent correction of the test-function gradients.
+    bool gradient_correction = true;
+  };
+
+  /// Particle data a stencil build needs, indexed by cloud position (sorted by global id).
+  struct ParticleCloud
+  {
+    /// Reference positions.
+    std::vector<Point3> position;
+    /// Spacing per direction (support radius = dilation x spacing).
+    std::vector<Point3> spacing;
+    /// 1 where the interpolation row is replaced by the identity (u_J = d_J): particles with
+    /// an essential or traction boundary condition.
+    std::vector<unsigned char> interpolating;
+  };
+
+  /**
+   * @brief The stencils of one rank: A over the rows J, G over the owned rows I, and the map
+   * from compact coefficient index K to cloud index.
+   */
+  struct LocalStencils
+  {
+    /// A: n_j rows (particles J), columns compact K; psi used, identity rows where interpolating.
+    Stencil a;
+    /// G: n_i rows (owned particles I), columns compact J; grad used (grad Psi~_J(X_I)).
+    Stencil g;
+    /// Cloud index of each compact coefficient K (owned first, in the order given).
+    std::vector<unsigned int> cloud_index;
+    unsigned int              n_i = 0, n_j = 0, n_k = 0;
+    /// Owned rows whose moment matrix fell back to Shepard functions (cloud indices).
+    std::vector<unsigned int> fallback;
+  };
+
+  /**
+   * @brief Builds the local stencils for the owned particles @p owned (cloud indices, in the
+   * order in which they become rows I) from the whole cloud.
+   *
+   * J = owned, then the other particles in the supports of the owned ones; K = J, then the
+   * particles in the supports of every J (the two-hop set). Deterministic: neighbours are
+   * summed in cloud order, so the stencils do not depend on the partition.
+   */
+  LocalStencils
+  build_local_stencils(const ParticleCloud &cloud, const std::vector<unsigned int> &owned,
+                       const RkParameters &params);
+
+  /**
+   * @brief The particle operators of one rank on compact arrays (3 doubles per particle for
+   * vectors, 9 row-major for tensors).
+   */
+  class SpgOperator
+  {
+  public:
+    /**
+     * @brief Stores the stencils (which must outlive this object) and the options.
+     * @param lambda residual weights Lambda_I = V_I M_I / a_I^2 of the owned rows (M the
+     *        P-wave modulus, a the support radius), used by R2
+     */
+    void
+    reinit(const LocalStencils &stencils, const FormulationOptions &options, const std::vector<double> &lambda);
+
+    /// Pass 1: u over the n_j rows (3 each) from d over the n_k coefficients.
+    void
+    displacement(const double *d, double *u) const;
+
+    /// Pass 2: F (9 per owned row) from u.
+    void
+    deformation_gradient(const double *u, double *F) const;
+
+    /**
+     * @brief Subtracts the internal force A^T G^T (V P) (plus the gradient correction when
+     * set) from @p f (3 per coefficient K).
+     * @param VP V_I P_I per owned row, 9 each (first Piola-Kirchhoff, row-major)
+     */
+    void
+    subtract_internal_force(const double *VP, double *f) const;
+
+    /**
+     * @brief R2: subtracts alpha (I - A)^T Lambda (I - A) d from @p f: the gradient of
+     * W_s = (alpha / 2) sum_I Lambda_I |d_I - (A d)_I|^2 over the owned rows.
+     *
+     * The residual acts on the coefficients, not on u = A d: at large dilations A is nearly
+     * singular and its near-null vectors (the odd-even family) have u close to zero, so a
+     * residual of u cannot see them (doc/theory/spg_stabilization.md).
+     * @param d coefficients over the n_k columns
+     * @return the stabilization energy W_s of the owned rows
+     */
+    double
+    subtract_residual_force(const double *d, double *f) const;
+
+    /**
+     * @brief Partial sums (owned rows only) of the integration-constraint terms of every
+     * coefficient K: @p c = sum_I V_I grad phi_K(X_I) (3 per K), @p b = sum_J a_J A_JK
+     * (the nodal boundary integral of phi_K n, 3 per K) and @p w = sum_I V_I A_IK (1 per K).
+     * @param volume V_I of the owned rows
+     * @param area_vector outward area vector a_J of the owned rows (zero inside the body)
+     */
+    void
+    integration_terms(const double *volume, const double *area_vector, double *c, double *b, double *w) const;
+
+    /**
+     * @brief Sets the gradient correction xi_K (3 per coefficient K), so that the test-function
+     * gradients grad phi_K + xi_K Psi_K meet sum_I V_I grad phi_K(X_I) = sum_J a_J phi_K(X_J).
+     */
+    void
+    set_gradient_correction(std::vector<double> xi);
+
+    /// Applies R1 to the owned rows: out_I = (A in)_I for I < n_i (3 per row).
+    void
+    smooth_owned(const double *in, double *out) const;
+
+    /// The options.
+    const FormulationOptions &
+    options() const
+    {
+      return options_;
+    }
+
+    /// Number of owned rows I.
+    unsigned int
+    n_i() const
+    {
+      return n_i_;
+    }
+
+    /// Number of rows J of A.
+    unsigned int
+    n_j() const
+    {
+      return n_j_;
+    }
+
+    /// Number of coefficients K.
+    unsigned int
+    n_k() const
+    {
+      return n_k_;
+    }
+
+  private:
+    FormulationOptions        options_;
+    unsigned int              n_i_ = 0, n_j_ = 0, n_k_ = 0;
+    const LocalStencils      *stencils_ = nullptr;
+    std::vector<unsigned int> identity_offsets_, identity_columns_;
+    std::vector<double>       identity_values_;
+    SpgKernel                 kernel_;     // A used for u (identity for DNI) and G
+    SpgKernel                 smoothing_;  // RK A for the residual and the filter
+    std::vector<double>       lambda_, xi_;
+    mutable std::vector<double> scratch_j_, scratch_j9_, scratch_k_, scratch_k9_;
+  };
+} // namespace shard::particles

@@ -1,0 +1,446 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+// Stability and consistency of the particle formulation, through the production operator
+// (SpgOperator) with a small-strain isotropic material (E = 1, nu = 0.3, rho = 1, h = 1):
+// - spectral test (a): zero-mode count of the assembled stiffness of a free 6x6x6 block;
+// - spectral test (b): Rayleigh quotient of the odd-even patterns (-1)^(i+j+k) e in the
+//   interior of a 12x12x12 block, relative to the largest eigenvalue;
+// - Galerkin patch test: boundary particles follow a linear field, the interior is solved;
+// - the residual force is the exact gradient of its energy, and vanishes for linear fields;
+// - the gradient correction meets the integration constraint.
+// The numbers are printed for doc/theory/spg_stabilization.md.
+#include <shard/particles/neighbor_build.h>
+#include <shard/particles/spg_operator.h>
+
+#include <Eigen/Dense>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <vector>
+
+namespace
+{
+  using namespace shard::particles;
+
+  constexpr double E = 1, nu = 0.3;
+  constexpr double lambda_lame = E * nu / ((1 + nu) * (1 - 2 * nu));
+  constexpr double mu          = E / (2 * (1 + nu));
+  constexpr double p_modulus   = lambda_lame + 2 * mu;
+
+  /// One form of the method under test.
+  struct Form
+  {
+    const char        *name;
+    FormulationOptions options;
+    bool               is_default = false;
+  };
+
+  FormulationOptions
+  make(const Smoothing s, const Stabilization st, const double alpha, const bool vci)
+  {
+    FormulationOptions o;
+    o.smoothing            = s;
+    o.stabilization        = st;
+    o.residual_coefficient = alpha;
+    o.gradient_correction  = vci;
+    return o;
+  }
+
+  /// A particle block n^3 at spacing 1 with hex-mesh nodal volumes and boundary area vectors.
+  struct Block
+  {
+    unsigned int        n;
+    ParticleCloud       cloud;
+    std::vector<double> volume, area;
+    LocalStencils       stencils;
+    SpgOperator         op;
+
+    Block(const unsigned int n_, const double dilation, const FormulationOptions &options, const double jitter = 0,
+          const bool constrain_boundary = false)
+      : n(n_)
+    {
+      std::mt19937                           rng(7);
+      std::uniform_real_distribution<double> noise(-jitter, jitter);
+      for (unsigned int k = 0; k < n; ++k)
+        for (unsigned int j = 0; j < n; ++j)
+          for (unsigned int i = 0; i < n; ++i)
+            {
+              const unsigned int idx[3] = {i, j, k};
+              Point3             x{{double(i), double(j), double(k)}};
+              double             v = 1;
+              Point3             a{{0, 0, 0}};
+              bool               boundary = false;
+              for (unsigned int c = 0; c < 3; ++c)
+                {
+                  const bool lo = idx[c] == 0, hi = idx[c] == n - 1;
+                  if (lo || hi)
+                    {
+                      v *= 0.5;
+                      boundary = true;
+                    }
+                  else
+                    x[c] += noise(rng);
+                }
+              // Outward area vector: per face direction c, the node's share of the boundary quads.
+              for (unsigned int c = 0; c < 3; ++c)
+                if (idx[c] == 0 || idx[c] == n - 1)
+                  {
+                    double share = 1;
+                    for (unsigned int o = 0; o < 3; ++o)
+                      if (o != c && (idx[o] == 0 || idx[o] == n - 1))
+                        share *= 0.5;
+                    a[c] = (idx[c] == 0 ? -1. : 1.) * share;
+                  }
+              cloud.position.push_back(x);
+              cloud.spacing.push_back(Point3{{1, 1, 1}});
+              cloud.interpolating.push_back(constrain_boundary && boundary ? 1 : 0);
+              volume.push_back(v);
+              area.insert(area.end(), a.begin(), a.end());
+            }
+      RkParameters params;
+      params.dilation = dilation;
+      std::vector<unsigned int> owned(cloud.position.size());
+      for (unsigned int p = 0; p < owned.size(); ++p)
+        owned[p] = p;
+      stencils = build_local_stencils(cloud, owned, params);
+      std::vector<double> lambda(owned.size());
+      for (unsigned int p = 0; p < owned.size(); ++p)
+        lambda[p] = volume[p] * p_modulus / (dilation * dilation);
+      op.reinit(stencils, options, lambda);
+      if (options.gradient_correction)
+        {
+          const unsigned int  m = size();
+          std::vector<double> c(3 * m), b(3 * m), w(m), xi(3 * m);
+          op.integration_terms(volume.data(), area.data(), c.data(), b.data(), w.data());
+          for (unsigned int k = 0; k < m; ++k)
+            for (unsigned int i = 0; i < 3; ++i)
+              xi[3 * k + i] = (b[3 * k + i] - c[3 * k + i]) / w[k];
+          op.set_gradient_correction(xi);
+        }
+    }
+
+    unsigned int
+    size() const
+    {
+      return cloud.position.size();
+    }
+
+    /// The force (external minus internal, i.e. -K d) of the linear small-strain model.
+    std::vector<double>
+    force(const std::vector<double> &d, double *stabilization_energy = nullptr) const
+    {
+      const unsigned int  m = size();
+      std::vector<double> u(3 * m), F(9 * m), VP(9 * m), f(3 * m, 0.);
+      op.displacement(d.data(), u.data());
+      op.deformation_gradient(u.data(), F.data());
+      for (unsigned int p = 0; p < m; ++p)
+        {
+          double eps[3][3], tr = 0;
+          for (unsigned int i = 0; i < 3; ++i)
+            for (unsigned int j = 0; j < 3; ++j)
+              eps[i][j] = 0.5 * (F[9 * p + 3 * i + j] + F[9 * p + 3 * j + i]) - (i == j ? 1. : 0.);
+          tr = eps[0][0] + eps[1][1] + eps[2][2];
+          for (unsigned int i = 0; i < 3; ++i)
+            for (unsigned int j = 0; j < 3; ++j)
+              VP[9 * p + 3 * i + j] = volume[p] * (2 * mu * eps[i][j] + (i == j ? lambda_lame * tr : 0.));
+        }
+      op.subtract_internal_force(VP.data(), f.data());
+      double es = 0;
+      if (op.options().stabilization == Stabilization::residual)
+        es = op.subtract_residual_force(d.data(), f.data());
+      if (stabilization_energy)
+        *stabilization_energy = es;
+      return f;
+    }
+
+    /// Dense stiffness K (f = -K d), mass-scaled: M^-1/2 K M^-1/2.
+    Eigen::MatrixXd
+    scaled_stiffness() const
+    {
+      const unsigned int n_dofs = 3 * size();
+      Eigen::MatrixXd    K(n_dofs, n_dofs);
+      std::vector<double> d(n_dofs, 0.);
+      for (unsigned int c = 0; c < n_dofs; ++c)
+        {
+          d[c]         = 1;
+          const auto f = force(d);
+          d[c]         = 0;
+          for (unsigned int r = 0; r < n_dofs; ++r)
+            K(r, c) = -f[r] / std::sqrt(volume[r / 3] * volume[c / 3]);
+        }
+      return K;
+    }
+  };
+
+  struct Spectrum
+  {
+    unsigned int small = 0; // |lambda| < 1e-4 lambda_max
+    double       lowest_nonrigid = 0, lambda_max = 0, max_imag = 0;
+  };
+
+  Spectrum
+  spectrum(const Block &b)
+  {
+    const Eigen::MatrixXd             K = b.scaled_stiffness();
+    Eigen::EigenSolver<Eigen::MatrixXd> solver(K, false);
+    std::vector<double>               values;
+    Spectrum                          s;
+    for (Eigen::Index i = 0; i < solver.eigenvalues().size(); ++i)
+      {
+        values.push_back(std::abs(solver.eigenvalues()[i]));
+        s.max_imag = std::max(s.max_imag, std::abs(solver.eigenvalues()[i].imag()));
+      }
+    std::sort(values.begin(), values.end());
+    s.lambda_max = values.back();
+    for (const double v : values)
+      s.small += v < 1e-4 * s.lambda_max;
+    s.lowest_nonrigid = values[6] / s.lambda_max;
+    s.max_imag /= s.lambda_max;
+    return s;
+  }
+
+  const Form default_form{"default (two-level + R2 0.1 + VCI)",
+                          make(Smoothing::two_level, Stabilization::residual, 0.1, true), true};
+  const Form dni_form{"plain DNI RK", make(Smoothing::none, Stabilization::none, 0, false)};
+  const Form r0_form{"plain two-level (R0)", make(Smoothing::two_level, Stabilization::none, 0, false)};
+} // namespace
+
+// (a) Zero modes of a free 6x6x6 block at dilations 1.5 and 2.5.
+TEST(SpgStability, FreeBlockZeroModeCount)
+{
+  std::printf("form | dilation | eigenvalues < 1e-4 lmax | lowest non-rigid / lmax | omega_max h / c\n");
+  const Form scan[] = {dni_form,
+                       r0_form,
+                       {"two-level + R2 0.01 + VCI", make(Smoothing::two_level, Stabilization::residual, 0.01, true)},
+                       {"two-level + R2 0.03 + VCI", make(Smoothing::two_level, Stabilization::residual, 0.03, true)},
+                       default_form,
+                       {"two-level + R2 0.3 + VCI", make(Smoothing::two_level, Stabilization::residual, 0.3, true)},
+                       {"two-level + R2 1 + VCI", make(Smoothing::two_level, Stabilization::residual, 1., true)},
+                       {"DNI + R2 0.1 + VCI", make(Smoothing::none, Stabilization::residual, 0.1, true)}};
+  for (const double dilation : {1.5, 2.5})
+    for (const Form &form : scan)
+      {
+        const Block    b(6, dilation, form.options);
+        const Spectrum s = spectrum(b);
+        std::printf("%s | %.1f | %u | %.3e | %.3f\n", form.name, dilation, s.small, s.lowest_nonrigid,
+                    std::sqrt(s.lambda_max / p_modulus));
+        if (form.is_default)
+          {
+            EXPECT_EQ(s.small, 6u) << "dilation " << dilation;
+            // The stable step h / c with the safety factor 0.9 stays below 2 / omega_max.
+            EXPECT_LT(0.9 * std::sqrt(s.lambda_max / p_modulus), 2.0);
+          }
+      }
+}
+
+// (b) Odd-even patterns in the interior of a 12x12x12 block: energy per unit mass at the
+// integration points whose whole two-hop stencil lies in the block, over lambda_max.
+TEST(SpgStability, OddEvenPatternsCarryEnergy)
+{
+  const unsigned int n = 12;
+  std::printf("form | dilation | axis | Rayleigh quotient / lmax\n");
+  const Form forms[] = {dni_form,
+                        r0_form,
+                        {"two-level + R2 0.03 + VCI", make(Smoothing::two_level, Stabilization::residual, 0.03, true)},
+                        default_form,
+                        {"two-level + R2 0.3 + VCI", make(Smoothing::two_level, Stabilization::residual, 0.3, true)}};
+  for (const double dilation : {1.5, 2.5})
+    for (const Form &form : forms)
+      {
+        const Block        b(n, dilation, form.options);
+        const unsigned int m    = b.size();
+        const unsigned int skin = dilation < 2 ? 3 : 5; // two supports deep
+        // Largest eigenvalue of M^-1 K by power iteration.
+        std::vector<double> x(3 * m);
+        std::mt19937        rng(3);
+        std::normal_distribution<double> g;
+        for (auto &v : x)
+          v = g(rng);
+        double lmax = 0;
+        for (unsigned int it = 0; it < 300; ++it)
+          {
+            auto   f    = b.force(x);
+            double norm = 0;
+            for (unsigned int r = 0; r < 3 * m; ++r)
+              {
+                f[r] = -f[r] / b.volume[r / 3];
+                norm += f[r] * f[r];
+              }
+            norm = std::sqrt(norm);
+            double xn = 0;
+            for (const double v : x)
+              xn += v * v;
+            lmax = norm / std::sqrt(xn);
+            for (unsigned int r = 0; r < 3 * m; ++r)
+              x[r] = f[r] / norm;
+          }
+        for (unsigned int axis = 0; axis < 3; ++axis)
+          {
+            std::vector<double> d(3 * m, 0.);
+            for (unsigned int k = 0; k < n; ++k)
+              for (unsigned int j = 0; j < n; ++j)
+                for (unsigned int i = 0; i < n; ++i)
+                  d[3 * ((k * n + j) * n + i) + axis] = (i + j + k) % 2 ? -1. : 1.;
+            const auto f = b.force(d);
+            // Interior energy from the local work -f . d restricted to interior particles equals
+            // the interior energy density of the pattern, which is uniform there.
+            double work = 0, mass = 0;
+            for (unsigned int k = skin; k < n - skin; ++k)
+              for (unsigned int j = skin; j < n - skin; ++j)
+                for (unsigned int i = skin; i < n - skin; ++i)
+                  {
+                    const unsigned int p = (k * n + j) * n + i;
+                    for (unsigned int c = 0; c < 3; ++c)
+                      work -= f[3 * p + c] * d[3 * p + c];
+                    mass += b.volume[p];
+                  }
+            const double rq = work / mass / lmax;
+            std::printf("%s | %.1f | %c | %.3e\n", form.name, dilation, "xyz"[axis], rq);
+            if (form.is_default)
+              {
+                EXPECT_GE(rq, 1e-3) << "dilation " << dilation << ", axis " << axis;
+              }
+          }
+      }
+}
+
+// Galerkin patch test: the boundary particles interpolate and follow a linear field, the
+// interior is solved statically; the interior must come out linear.
+TEST(SpgStability, GalerkinPatchTest)
+{
+  const double H[3][3] = {{2e-3, -1e-3, 5e-4}, {3e-4, -1.5e-3, 7e-4}, {-6e-4, 2e-4, 1e-3}};
+  const auto   linear  = [&](const Point3 &x, const unsigned int i) {
+    return 1e-4 * (i + 1) + H[i][0] * x[0] + H[i][1] * x[1] + H[i][2] * x[2];
+  };
+  const Form forms[] = {{"plain DNI RK", make(Smoothing::none, Stabilization::none, 0, false)},
+                        {"plain two-level (R0)", make(Smoothing::two_level, Stabilization::none, 0, false)},
+                        {"two-level + R2 0.1", make(Smoothing::two_level, Stabilization::residual, 0.1, false)},
+                        {"DNI + VCI", make(Smoothing::none, Stabilization::none, 0, true)},
+                        {"two-level + VCI", make(Smoothing::two_level, Stabilization::none, 0, true)},
+                        default_form};
+  std::printf("form | dilation | max |u - u_linear| / max |u_linear|\n");
+  for (const double dilation : {1.5, 2.5})
+    for (const Form &form : forms)
+      {
+        const Block        b(7, dilation, form.options, 0.2, true);
+        const unsigned int m = b.size();
+        std::vector<int>   free_index(3 * m, -1);
+        std::vector<double> d(3 * m, 0.);
+        unsigned int       n_free = 0;
+        for (unsigned int p = 0; p < m; ++p)
+          for (unsigned int i = 0; i < 3; ++i)
+            {
+              if (b.cloud.interpolating[p])
+                d[3 * p + i] = linear(b.cloud.position[p], i);
+              else
+                free_index[3 * p + i] = n_free++;
+            }
+        // Residual r(d_free) = f(d) is affine: assemble its Jacobian column by column.
+        const auto      f0 = b.force(d);
+        Eigen::MatrixXd Kff(n_free, n_free);
+        Eigen::VectorXd rhs(n_free);
+        for (unsigned int r = 0; r < 3 * m; ++r)
+          if (free_index[r] >= 0)
+            rhs(free_index[r]) = -f0[r];
+        for (unsigned int c = 0; c < 3 * m; ++c)
+          if (free_index[c] >= 0)
+            {
+              d[c]         = 1;
+              const auto f = b.force(d);
+              d[c]         = 0;
+              for (unsigned int r = 0; r < 3 * m; ++r)
+                if (free_index[r] >= 0)
+                  Kff(free_index[r], free_index[c]) = f[r] - f0[r];
+            }
+        const Eigen::VectorXd x = Kff.partialPivLu().solve(rhs);
+        for (unsigned int c = 0; c < 3 * m; ++c)
+          if (free_index[c] >= 0)
+            d[c] = x(free_index[c]);
+        std::vector<double> u(3 * b.stencils.n_j);
+        b.op.displacement(d.data(), u.data());
+        double err = 0, scale = 0;
+        for (unsigned int p = 0; p < m; ++p)
+          for (unsigned int i = 0; i < 3; ++i)
+            {
+              err   = std::max(err, std::abs(u[3 * p + i] - linear(b.cloud.position[p], i)));
+              scale = std::max(scale, std::abs(linear(b.cloud.position[p], i)));
+            }
+        std::printf("%s | %.1f | %.3e\n", form.name, dilation, err / scale);
+        if (form.options.gradient_correction)
+          {
+            EXPECT_LT(err / scale, 1e-6) << form.name << " at dilation " << dilation;
+          }
+      }
+}
+
+// The residual force is minus the gradient of its energy and vanishes for linear fields.
+TEST(SpgStability, ResidualForceIsEnergyGradient)
+{
+  const Block        b(5, 1.5, make(Smoothing::two_level, Stabilization::residual, 0.1, false), 0.2);
+  const Block        plain(5, 1.5, make(Smoothing::two_level, Stabilization::none, 0, false), 0.2);
+  const unsigned int m = b.size();
+  std::mt19937       rng(11);
+  std::uniform_real_distribution<double> r(-1e-3, 1e-3);
+  std::vector<double> d(3 * m);
+  for (auto &v : d)
+    v = r(rng);
+  // Stabilization part alone: difference of the two forms (same elastic part).
+  const auto fs = b.force(d), fp = plain.force(d);
+  double     max_f = 0;
+  for (unsigned int c = 0; c < 3 * m; ++c)
+    max_f = std::max(max_f, std::abs(fs[c] - fp[c]));
+  ASSERT_GT(max_f, 0.);
+  for (unsigned int c = 0; c < 3 * m; c += 7)
+    {
+      const double eps = 1e-6;
+      double       ep, em;
+      d[c] += eps;
+      b.force(d, &ep);
+      d[c] -= 2 * eps;
+      b.force(d, &em);
+      d[c] += eps;
+      EXPECT_NEAR(-(ep - em) / (2 * eps), fs[c] - fp[c], 1e-6 * max_f) << "dof " << c;
+    }
+  // Linear field: no residual force.
+  for (unsigned int p = 0; p < m; ++p)
+    for (unsigned int i = 0; i < 3; ++i)
+      d[3 * p + i] = 1e-3 * (i + 1) * b.cloud.position[p][(i + 1) % 3];
+  double es = 1;
+  const auto fl = b.force(d, &es), fpl = plain.force(d);
+  EXPECT_LT(es, 1e-28);
+  for (unsigned int c = 0; c < 3 * m; ++c)
+    EXPECT_NEAR(fl[c], fpl[c], 1e-14);
+}
+
+// With the correction, a uniform stress gives interior forces that match the boundary integral
+// sum_J a_J phi_K(X_J) (zero away from the surface), and total force zero.
+TEST(SpgStability, GradientCorrectionMeetsIntegrationConstraint)
+{
+  for (const bool vci : {false, true})
+    {
+      const Block        b(6, 2.5, make(Smoothing::two_level, Stabilization::none, 0, vci), 0.2);
+      const unsigned int m = b.size();
+      std::vector<double> c(3 * m), bb(3 * m), w(m);
+      b.op.integration_terms(b.volume.data(), b.area.data(), c.data(), bb.data(), w.data());
+      // Uniform P = I: force = -(c + xi w) must equal -b.
+      std::vector<double> VP(9 * m, 0.), f(3 * m, 0.);
+      for (unsigned int p = 0; p < m; ++p)
+        for (unsigned int i = 0; i < 3; ++i)
+          VP[9 * p + 4 * i] = b.volume[p];
+      b.op.subtract_internal_force(VP.data(), f.data());
+      double err = 0, total[3] = {0, 0, 0};
+      for (unsigned int k = 0; k < 3 * m; ++k)
+        {
+          err = std::max(err, std::abs(-f[k] - bb[k]));
+          total[k % 3] += f[k];
+        }
+      std::printf("gradient correction %s: max |f_K - boundary integral| = %.3e\n", vci ? "on" : "off", err);
+      if (vci)
+        EXPECT_LT(err, 1e-12);
+      else
+        EXPECT_GT(err, 1e-3); // the uncorrected nodal integration misses the constraint
+      for (const double t : total)
+        EXPECT_LT(std::abs(t), 1e-12);
+    }
+}
