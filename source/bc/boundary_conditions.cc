@@ -297,4 +297,13 @@ namespace shard::bc
       }
     return change;
   }
+
+  std::vector<std::pair<std::string, int>>
+  BoundaryConditions::faces() const
+  {
+    std::vector<std::pair<std::string, int>> out;
+    for (const auto &name : names_)
+      out.emplace_back(params_.at(name)->body, params_.at(name)->boundary_id);
+    return out;
+  }
 } // namespace shard::bc

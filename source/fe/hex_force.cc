@@ -47,7 +47,8 @@ namespace shard::fe
   }
 
   void
-  HexForce::prepare(const mesh::Discretization &discretization, const materials::MaterialLibrary &library)
+  HexForce::prepare(const mesh::Discretization &discretization, const materials::MaterialLibrary &library,
+                    const std::vector<bool> &skip_bodies)
   {
     discretization_         = &discretization;
     viscous_                = hourglass_type_ == "viscous";
@@ -74,7 +75,8 @@ namespace shard::fe
     };
     std::vector<Raw> raw;
     for (const auto &cell : dh.active_cell_iterators())
-      if (cell->is_locally_owned())
+      if (cell->is_locally_owned() &&
+          !(cell->material_id() < skip_bodies.size() && skip_bodies[cell->material_id()]))
         {
           Raw r;
           r.body  = cell->material_id();

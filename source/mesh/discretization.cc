@@ -369,4 +369,20 @@ namespace shard::mesh
           }
     return {nodes.begin(), nodes.end()};
   }
+
+  void
+  Discretization::add_ghost_dofs(const IndexSet &extra)
+  {
+    IndexSet ghosts = partitioner_->ghost_indices();
+    ghosts.add_indices(extra);
+    ghosts.subtract_set(dof_handler_.locally_owned_dofs());
+    partitioner_ = std::make_shared<Utilities::MPI::Partitioner>(dof_handler_.locally_owned_dofs(), ghosts, comm_);
+    Vector positions(partitioner_);
+    for (unsigned int i = 0; i < partitioner_->locally_owned_size(); ++i)
+      positions.local_element(i) = reference_.local_element(i);
+    positions.update_ghost_values();
+    reference_.reinit(partitioner_);
+    reference_ = positions;
+    reference_.update_ghost_values();
+  }
 } // namespace shard::mesh

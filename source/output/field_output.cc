@@ -59,11 +59,14 @@ namespace shard::output
   }
 
   void
-  FieldOutput::prepare(const mesh::Discretization &discretization, const fe::HexForce &hex)
+  FieldOutput::prepare(const mesh::Discretization &discretization, const fe::HexForce &hex,
+                       const particles::SpgForce &particles)
   {
     discretization_ = &discretization;
     hex_            = &hex;
+    particles_      = &particles;
     records_.clear();
+    particle_records_.clear();
     if (Utilities::MPI::this_mpi_process(discretization.communicator()) == 0)
       {
         std::error_code ec;
@@ -125,6 +128,93 @@ namespace shard::output
         std::ostringstream pvd;
         DataOutBase::write_pvd_record(pvd, records_);
         write_file_atomically(pvd_path(), pvd.str());
+      }
+    if (particles_->active())
+      write_particles(time, d, v);
+  }
+
+  void
+  FieldOutput::write_particles(const double time, const mesh::Vector &d, const mesh::Vector &v)
+  {
+    const auto         comm    = discretization_->communicator();
+    const unsigned int rank    = Utilities::MPI::this_mpi_process(comm);
+    const unsigned int n_ranks = Utilities::MPI::n_mpi_processes(comm);
+    const auto        &set     = particles_->particles();
+    const unsigned int n       = particles_->n_owned();
+    const std::string  stem    = "particles_" + Utilities::int_to_string(particle_records_.size(), 4);
+    const auto         piece   = [&](const unsigned int r) { return stem + "." + Utilities::int_to_string(r, 4) + ".vtu"; };
+
+    std::ostringstream out;
+    out.precision(9);
+    out << "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" byte_order=\"LittleEndian\">\n"
+        << "<UnstructuredGrid>\n<FieldData><DataArray type=\"Float64\" Name=\"TIME\" NumberOfTuples=\"1\" "
+           "format=\"ascii\">"
+        << time << "</DataArray></FieldData>\n<Piece NumberOfPoints=\"" << n << "\" NumberOfCells=\"" << n
+        << "\">\n<Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+    for (unsigned int i = 0; i < n; ++i)
+      for (unsigned int c = 0; c < 3; ++c)
+        out << set.position(i)[c] + d.local_element(set.local_dof(i) + c) << (c == 2 ? "\n" : " ");
+    out << "</DataArray></Points>\n<Cells><DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">\n";
+    for (unsigned int i = 0; i < n; ++i)
+      out << i << "\n";
+    out << "</DataArray><DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n";
+    for (unsigned int i = 0; i < n; ++i)
+      out << i + 1 << "\n";
+    out << "</DataArray><DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n";
+    for (unsigned int i = 0; i < n; ++i)
+      out << "1\n";
+    out << "</DataArray></Cells>\n<PointData>\n";
+    const auto vector_field = [&](const char *name, const mesh::Vector &x) {
+      out << "<DataArray type=\"Float64\" Name=\"" << name << "\" NumberOfComponents=\"3\" format=\"ascii\">\n";
+      for (unsigned int i = 0; i < n; ++i)
+        for (unsigned int c = 0; c < 3; ++c)
+          out << x.local_element(set.local_dof(i) + c) << (c == 2 ? "\n" : " ");
+      out << "</DataArray>\n";
+    };
+    const auto scalar_field = [&](const char *name, const auto &value) {
+      out << "<DataArray type=\"Float64\" Name=\"" << name << "\" format=\"ascii\">\n";
+      for (unsigned int i = 0; i < n; ++i)
+        out << value(i) << "\n";
+      out << "</DataArray>\n";
+    };
+    vector_field("displacement", d);
+    vector_field("velocity", v);
+    const char *names[6] = {"stress_xx", "stress_yy", "stress_zz", "stress_yz", "stress_xz", "stress_xy"};
+    for (unsigned int c = 0; c < 6; ++c)
+      scalar_field(names[c], [&](const unsigned int i) { return particles_->stress(i)[c]; });
+    scalar_field("von_mises_stress", [&](const unsigned int i) { return materials::von_mises_stress(particles_->stress(i)); });
+    scalar_field("plastic_strain",
+                 [&](const unsigned int i) { return particles_->state_value(i, materials::slot::plastic_strain); });
+    scalar_field("failed", [&](const unsigned int i) { return particles_->state_value(i, materials::slot::failed); });
+    scalar_field("material", [&](const unsigned int i) { return double(set.body(i)); });
+    scalar_field("volume", [&](const unsigned int i) { return set.volume(i); });
+    scalar_field("mpi_rank", [&](const unsigned int) { return double(rank); });
+    out << "</PointData>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n";
+    write_file_atomically(directory_ + "/" + piece(rank), out.str());
+
+    if (rank == 0)
+      {
+        std::ostringstream p;
+        p << "<?xml version=\"1.0\"?>\n<VTKFile type=\"PUnstructuredGrid\" version=\"0.1\" "
+             "byte_order=\"LittleEndian\">\n<PUnstructuredGrid GhostLevel=\"0\">\n"
+             "<PPoints><PDataArray type=\"Float64\" NumberOfComponents=\"3\"/></PPoints>\n<PPointData>\n"
+             "<PDataArray type=\"Float64\" Name=\"displacement\" NumberOfComponents=\"3\"/>\n"
+             "<PDataArray type=\"Float64\" Name=\"velocity\" NumberOfComponents=\"3\"/>\n";
+        for (const char *name : {"stress_xx", "stress_yy", "stress_zz", "stress_yz", "stress_xz", "stress_xy",
+                                 "von_mises_stress", "plastic_strain", "failed", "material", "volume", "mpi_rank"})
+          p << "<PDataArray type=\"Float64\" Name=\"" << name << "\"/>\n";
+        p << "</PPointData>\n";
+        for (unsigned int r = 0; r < n_ranks; ++r)
+          p << "<Piece Source=\"" << piece(r) << "\"/>\n";
+        p << "</PUnstructuredGrid>\n</VTKFile>\n";
+        write_file_atomically(directory_ + "/" + stem + ".pvtu", p.str());
+      }
+    particle_records_.emplace_back(time, stem + ".pvtu");
+    if (rank == 0)
+      {
+        std::ostringstream pvd;
+        DataOutBase::write_pvd_record(pvd, particle_records_);
+        write_file_atomically(directory_ + "/particles.pvd", pvd.str());
       }
   }
 } // namespace shard::output

@@ -18,7 +18,7 @@ namespace shard::output
   {
     const std::map<std::string, unsigned int> n_args = {
       {"reaction", 2},       {"max_coordinate", 2}, {"min_coordinate", 2},    {"max_radius", 2},
-      {"stress", 4},         {"velocity", 4},       {"max_plastic_strain", 1}};
+      {"stress", 4},         {"velocity", 4},       {"max_plastic_strain", 1}, {"odd_even", 1}};
 
     int
     axis(const std::string &s)
@@ -39,7 +39,9 @@ namespace shard::output
                       "Kinds: reaction <condition> <x|y|z|n>; max_coordinate <body> <x|y|z>; "
                       "min_coordinate <body> <x|y|z>; max_radius <body> <axis x|y|z> [boundary id]; "
                       "stress <x> <y> <z> <xx|yy|zz|yz|xz|xy|vm|p>; velocity <x> <y> <z> <x|y|z>; "
-                      "max_plastic_strain <body|all>.");
+                      "max_plastic_strain <body|all>; odd_even <particle body>: |sum_I s_I u_I| / sum_I |u_I| with "
+                      "s_I = (-1)^(i+j+k) from the particle's lattice indices (1 for a pure checkerboard, near 0 "
+                      "for smooth fields).");
     prm.leave_subsection();
     return true;
   }
@@ -67,7 +69,7 @@ namespace shard::output
           {
             error = "entry '" + entry + "': unknown kind '" + it.kind +
                     "'; known: reaction, max_coordinate, min_coordinate, max_radius, stress, velocity, "
-                    "max_plastic_strain.";
+                    "max_plastic_strain, odd_even.";
             return {};
           }
         const bool optional_id = it.kind == "max_radius" && it.args.size() == 3;
@@ -93,10 +95,11 @@ namespace shard::output
 
   void
   Quantities::prepare(const mesh::Discretization &discretization, const fe::HexForce &hex,
-                      const bc::BoundaryConditions &conditions)
+                      const bc::BoundaryConditions &conditions, const particles::SpgForce &particles)
   {
     discretization_ = &discretization;
     hex_            = &hex;
+    particles_      = &particles;
     conditions_     = &conditions;
     std::string error;
     items_          = parse(error);
@@ -127,6 +130,28 @@ namespace shard::output
               it.boundary_id = std::stoi(it.args[2]);
             it.nodes = it.args.size() == 3 ? discretization.boundary_nodes(it.body, it.boundary_id) :
                                              discretization.body_nodes(it.body);
+          }
+        else if (it.kind == "odd_even")
+          {
+            it.body = discretization.body_index(it.args[0]);
+            if (it.body < 0 || !particles.particles().is_particle_body(it.body))
+              bad(it, "'" + it.args[0] + "' is not a body made of particles (E - Particles/bodies).");
+            // Lattice indices from the lowest corner of the body and the particle spacing.
+            double lo[3] = {1e300, 1e300, 1e300};
+            for (unsigned int i = 0; i < particles.n_owned(); ++i)
+              if (static_cast<int>(particles.particles().body(i)) == it.body)
+                for (unsigned int c = 0; c < 3; ++c)
+                  lo[c] = std::min(lo[c], particles.particles().position(i)[c]);
+            Utilities::MPI::min(ArrayView<const double>(lo, 3), discretization.communicator(), ArrayView<double>(lo, 3));
+            for (unsigned int i = 0; i < particles.n_owned(); ++i)
+              if (static_cast<int>(particles.particles().body(i)) == it.body)
+                {
+                  long sum = 0;
+                  for (unsigned int c = 0; c < 3; ++c)
+                    sum += std::lround((particles.particles().position(i)[c] - lo[c]) / particles.particles().spacing(i)[c]);
+                  it.nodes.push_back(particles.particles().local_dof(i));
+                  it.signs.push_back(sum % 2 ? -1. : 1.);
+                }
           }
         else if (it.kind == "max_plastic_strain")
           {
@@ -160,9 +185,18 @@ namespace shard::output
                     {
                       const auto   ctr  = cell->center();
                       const double dist = std::hypot(ctr[0] - p[0], ctr[1] - p[1], ctr[2] - p[2]);
-                      if (dist < best)
-                        best = dist, it.element = hex.element_of_cell(cell->active_cell_index());
+                      const int element = hex.element_of_cell(cell->active_cell_index());
+                      if (dist < best && element >= 0)
+                        best = dist, it.element = element;
                     }
+                // Particles carry the stress of particle bodies.
+                for (unsigned int i = 0; i < particles.n_owned(); ++i)
+                  {
+                    const auto  &x    = particles.particles().position(i);
+                    const double dist = std::hypot(x[0] - p[0], x[1] - p[1], x[2] - p[2]);
+                    if (dist < best)
+                      best = dist, it.element = -1, it.particle = static_cast<int>(i);
+                  }
               }
             else
               for (unsigned int j = 0; j < discretization.partitioner()->locally_owned_size(); j += 3)
@@ -178,7 +212,7 @@ namespace shard::output
                                                            discretization.communicator());
             it.owns_node = owner == rank;
             if (!it.owns_node)
-              it.element = -1;
+              it.element = -1, it.particle = -1;
           }
       }
   }
@@ -198,7 +232,8 @@ namespace shard::output
     const auto         &X = discretization_->reference_positions();
     const auto          comm = discretization_->communicator();
     std::vector<double> sums, maxima;
-    std::vector<int>    mode; // 0 sum, 1 max, 2 min (stored negated in maxima)
+    std::vector<int>    mode; // 0 sum, 1 max, 2 min (stored negated in maxima), 3 ratio of sums in ratios
+    std::vector<double> ratios;
     for (const auto &it : items_)
       {
         double value = 0;
@@ -240,13 +275,16 @@ namespace shard::output
             for (unsigned int e = 0; e < hex_->n_local_elements(); ++e)
               if (it.body < 0 || static_cast<int>(hex_->body(e)) == it.body)
                 value = std::max(value, hex_->state_value(e, materials::slot::plastic_strain));
+            for (unsigned int i = 0; i < particles_->n_owned(); ++i)
+              if (it.body < 0 || static_cast<int>(particles_->particles().body(i)) == it.body)
+                value = std::max(value, particles_->state_value(i, materials::slot::plastic_strain));
             m = 1;
           }
         else if (it.kind == "stress")
           {
-            if (it.element >= 0)
+            if (it.element >= 0 || it.particle >= 0)
               {
-                const double *s = hex_->stress(it.element);
+                const double *s = it.element >= 0 ? hex_->stress(it.element) : particles_->stress(it.particle);
                 value           = it.component < 6 ? s[it.component] :
                                   it.component == 6 ? materials::von_mises_stress(s) :
                                                       -(s[0] + s[1] + s[2]) / 3.;
@@ -257,15 +295,38 @@ namespace shard::output
             if (it.owns_node)
               value = v.local_element(it.node + it.component);
           }
+        else if (it.kind == "odd_even")
+          {
+            double s[4] = {0, 0, 0, 0};
+            for (std::size_t n = 0; n < it.nodes.size(); ++n)
+              {
+                const double u[3] = {d.local_element(it.nodes[n]), d.local_element(it.nodes[n] + 1),
+                                     d.local_element(it.nodes[n] + 2)};
+                for (unsigned int c = 0; c < 3; ++c)
+                  s[c] += it.signs[n] * u[c];
+                s[3] += std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+              }
+            ratios.insert(ratios.end(), s, s + 4);
+            m = 3;
+          }
         mode.push_back(m);
         sums.push_back(m == 0 ? value : 0.);
+        if (m == 3)
+          m = 0;
         maxima.push_back(m == 0 ? -std::numeric_limits<double>::max() : value);
       }
     Utilities::MPI::sum(sums, comm, sums);
     Utilities::MPI::max(maxima, comm, maxima);
+    Utilities::MPI::sum(ratios, comm, ratios);
     std::vector<double> out(items_.size());
-    for (unsigned int i = 0; i < items_.size(); ++i)
-      out[i] = mode[i] == 0 ? sums[i] : mode[i] == 1 ? maxima[i] : -maxima[i];
+    for (unsigned int i = 0, r = 0; i < items_.size(); ++i)
+      if (mode[i] == 3)
+        {
+          const double *s = &ratios[4 * r++];
+          out[i]          = s[3] > 0 ? std::sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]) / s[3] : 0.;
+        }
+      else
+        out[i] = mode[i] == 0 ? sums[i] : mode[i] == 1 ? maxima[i] : -maxima[i];
     return out;
   }
 } // namespace shard::output

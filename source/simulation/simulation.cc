@@ -100,8 +100,8 @@ namespace shard
   {
     source_ = source;
     base::read_parameters(prm_,
-                          {this, &discretization_, &materials_, &hex_, &conditions_, &integrator_, &output_,
-                           &quantities_},
+                          {this, &discretization_, &materials_, &particles_, &hex_, &spg_, &conditions_,
+                           &integrator_, &output_, &quantities_},
                           source_);
   }
 
@@ -121,15 +121,19 @@ namespace shard
         source_.fail("B - Mesh/" + b.name + "/material", b.material,
                      "no such material in 'C - Materials/material names'.");
     materials_.prepare();
-    hex_.prepare(discretization_, materials_);
+    // Particles first: their two-hop stencil widens the ghost set, which changes local indices.
+    particles_.prepare(discretization_, conditions_.faces(), source_);
+    hex_.prepare(discretization_, materials_, particles_.particle_bodies());
+    spg_.prepare(discretization_, particles_, materials_);
     conditions_.prepare(discretization_);
-    output_.prepare(discretization_, hex_);
-    quantities_.prepare(discretization_, hex_, conditions_);
+    output_.prepare(discretization_, hex_, spg_);
+    quantities_.prepare(discretization_, hex_, conditions_, spg_);
 
-    for (auto *vec : {&d_, &v_, &v_now_, &f_, &f_ext_, &mass_})
+    for (auto *vec : {&d_, &v_, &v_now_, &f_, &f_ext_, &mass_, &d_phys_})
       discretization_.initialize_vector(*vec);
     hex_.add_lumped_mass(mass_);
     mass_.compress(VectorOperation::add);
+    spg_.add_lumped_mass(mass_);
     mass_.update_ghost_values();
 
     // Initial velocity of each body at its nodes.
@@ -161,7 +165,7 @@ namespace shard
       {
         history_.open(output_.directory() + "/history.csv");
         history_ << "time,step,dt,kinetic_energy,internal_energy,hourglass_energy,external_work,boundary_work,"
-                    "energy_error,momentum_x,momentum_y,momentum_z";
+                    "filter_work,energy_error,momentum_x,momentum_y,momentum_z";
         for (const auto &name : quantities_.names())
           history_ << "," << name;
         history_ << "\n";
@@ -177,7 +181,7 @@ namespace shard
       initial_energy_ = Utilities::MPI::sum(ke, comm_);
       balance_.boundary_work += conditions_.apply_initial(d_, mass_, v_);
     }
-    stable_dt_ = hex_.initial_stable_dt();
+    stable_dt_ = std::min(hex_.initial_stable_dt(), spg_.initial_stable_dt());
     f_         = 0;
     f_ext_     = 0;
     conditions_.add_external_forces(0., f_ext_);
@@ -187,7 +191,7 @@ namespace shard
     d_.update_ghost_values();
     v_now_.update_ghost_values();
     record();
-    output_.write(0., d_, v_now_);
+    output_.write(0., physical_displacement(), v_now_);
 
     auto         last_progress   = Clock::now();
     double       next_output     = output_.interval();
@@ -214,6 +218,13 @@ namespace shard
               PhaseTimer timer(phase_time_, 3);
               d_.update_ghost_values();
               v_.update_ghost_values();
+              // R1 filter steps smooth the particle coefficients and exchange once more.
+              if (spg_.is_filter_step(step_))
+                {
+                  filter_work_ += spg_.filter(step_, mass_, f_, d_, v_);
+                  d_.update_ghost_values();
+                  v_.update_ghost_values();
+                }
             }
             // 5. FE internal force.
             std::string failure;
@@ -232,6 +243,22 @@ namespace shard
                   failure = e.what();
                 }
             }
+            // 6. Particle internal force.
+            if (spg_.active())
+              {
+                PhaseTimer timer(phase_time_, 6);
+                try
+                  {
+                    const auto r = spg_.add_internal_forces(d_, dt_, step_, f_);
+                    stable_dt_   = std::min(stable_dt_, r.stable_dt);
+                    internal_energy_ += r.internal_energy;
+                    stabilization_energy_ = r.stabilization_energy;
+                  }
+                catch (const fe::Instability &e)
+                  {
+                    failure += (failure.empty() ? "" : "; ") + std::string(e.what());
+                  }
+              }
             // 7. Loads.
             {
               PhaseTimer timer(phase_time_, 7);
@@ -273,7 +300,7 @@ namespace shard
                 {
                   d_.update_ghost_values();
                   v_now_.update_ghost_values();
-                  output_.write(t_, d_, v_now_);
+                  output_.write(t_, physical_displacement(), v_now_);
                   while (next_output <= t_ * (1 + 1e-12) && output_.interval() > 0)
                     next_output += output_.interval();
                 }
@@ -315,9 +342,13 @@ namespace shard
           if (max_time[p] > 0)
             std::fprintf(stderr, "  %-18s %10.3f s  %5.1f %%\n", phase_names[p], max_time[p],
                          p == 0 ? 0. : 100. * max_time[p] / loop);
-        if (phase_time_[5] > 0)
+        if (phase_time_[5] > 0 && hex_.n_local_elements() > 0)
           std::fprintf(stderr, "  FE force: %.3g element-steps/s (%.3f us per element-step)\n",
                        double(n_elements) * step_ / max_time[5], 1e6 * max_time[5] / (double(n_elements) * step_));
+        const double n_particles = particles_.n_global();
+        if (max_time[6] > 0 && n_particles > 0)
+          std::fprintf(stderr, "  particle force: %.3g particle-steps/s (%.3f us per particle-step)\n",
+                       n_particles * step_ / max_time[6], 1e6 * max_time[6] / (n_particles * step_));
       }
     else
       {
@@ -331,17 +362,20 @@ namespace shard
   Simulation::record()
   {
     // One reduction of the energy terms and momentum.
-    const double local[8] = {balance_.kinetic,       internal_energy_,         hourglass_energy_,
-                             balance_.external_work, balance_.boundary_work,   balance_.momentum[0],
-                             balance_.momentum[1],   balance_.momentum[2]};
-    double       g[8];
-    Utilities::MPI::sum(ArrayView<const double>(local, 8), comm_, ArrayView<double>(g, 8));
-    const double kinetic = g[0], internal = g[1] + g[2], external = g[3], boundary = g[4];
-    const double reference = std::max(initial_energy_ + std::abs(external) + std::abs(boundary), kinetic);
-    energy_error_ = reference > 0 ? (kinetic + internal - initial_energy_ - external - boundary) / reference : 0.;
+    // The hourglass column holds the FE hourglass work plus the particle stabilization energy.
+    const double local[9] = {balance_.kinetic,       internal_energy_,       hourglass_energy_ + stabilization_energy_,
+                             balance_.external_work, balance_.boundary_work, balance_.momentum[0],
+                             balance_.momentum[1],   balance_.momentum[2],   filter_work_};
+    double       g[9];
+    Utilities::MPI::sum(ArrayView<const double>(local, 9), comm_, ArrayView<double>(g, 9));
+    const double kinetic = g[0], internal = g[1] + g[2], external = g[3], boundary = g[4], filter = g[8];
+    const double reference =
+      std::max(initial_energy_ + std::abs(external) + std::abs(boundary) + std::abs(filter), kinetic);
+    energy_error_ =
+      reference > 0 ? (kinetic + internal - initial_energy_ - external - boundary - filter) / reference : 0.;
     max_energy_error_ = std::max(max_energy_error_, std::abs(energy_error_));
 
-    const auto q = quantities_.evaluate(d_, v_now_);
+    const auto q = quantities_.evaluate(physical_displacement(), v_now_);
     if (q_final_.empty())
       {
         q_min_ = q;
@@ -357,8 +391,9 @@ namespace shard
     if (Utilities::MPI::this_mpi_process(comm_) == 0)
       {
         char row[512];
-        std::snprintf(row, sizeof(row), "%.10e,%u,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e", t_,
-                      step_, dt_next_, kinetic, internal, g[2], external, boundary, energy_error_, g[5], g[6], g[7]);
+        std::snprintf(row, sizeof(row), "%.10e,%u,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e",
+                      t_, step_, dt_next_, kinetic, internal, g[2], external, boundary, filter, energy_error_, g[5],
+                      g[6], g[7]);
         history_ << row;
         for (const double x : q)
           {
@@ -383,6 +418,17 @@ namespace shard
                             g6(initial_energy_) + " J)");
   }
 
+  const mesh::Vector &
+  Simulation::physical_displacement()
+  {
+    if (!spg_.active())
+      return d_;
+    d_phys_ = d_;
+    spg_.physical_displacement(d_phys_);
+    d_phys_.update_ghost_values();
+    return d_phys_;
+  }
+
   void
   Simulation::write_summary(const RunResult &result, const double wall_time) const
   {
@@ -405,13 +451,17 @@ namespace shard
     j << "  \"last_dt\": " << number(dt_) << ",\n";
     j << "  \"wall_time_s\": " << number(wall_time + max_time[0]) << ",\n";
     j << "  \"n_elements\": " << discretization_.n_elements() << ",\n";
-    j << "  \"n_particles\": 0,\n";
+    j << "  \"n_particles\": " << particles_.n_global() << ",\n";
     j << "  \"n_mpi_ranks\": " << Utilities::MPI::n_mpi_processes(comm_) << ",\n";
     j << "  \"energy_error\": " << number(energy_error_) << ",\n";
     j << "  \"max_abs_energy_error\": " << number(max_energy_error_) << ",\n";
     j << "  \"element_steps_per_s\": " << number(max_time[5] > 0 ? n_elements * step_ / max_time[5] : 0) << ",\n";
     j << "  \"us_per_element_step\": " << number(step_ > 0 ? 1e6 * max_time[5] / (n_elements * step_) : 0)
       << ",\n";
+    const double n_particles = particles_.n_global();
+    j << "  \"particle_steps_per_s\": " << number(max_time[6] > 0 ? n_particles * step_ / max_time[6] : 0) << ",\n";
+    j << "  \"us_per_particle_step\": "
+      << number(step_ > 0 && n_particles > 0 ? 1e6 * max_time[6] / (n_particles * step_) : 0) << ",\n";
     j << "  \"phase_time_s\": {";
     for (unsigned int p = 0; p < 11; ++p)
       j << (p ? ", " : "") << "\"" << phase_names[p] << "\": " << number(max_time[p]);

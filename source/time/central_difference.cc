@@ -99,7 +99,11 @@ namespace shard::time
       {
         // v^n = v^{n-1/2} + dt_old / 2 a_eff with the constrained a_eff = (v^{n+1/2} - v^{n-1/2}) / dt_avg.
         vn[i] = op[i] + w * (vp[i] - op[i]);
-        kinetic += mp[i] * vn[i] * vn[i];
+        // Kinetic energy in the product form m v^{n-1/2} v^{n+1/2}: with the trapezoidal work of the
+        // internal forces it makes the energy of a linear system exactly conserved by the
+        // central difference at any frequency, whereas m (v^n)^2 is off by (omega dt)^2 / 8
+        // in every mode near the stability limit (doc/decisions/0004-kinetic-energy.md).
+        kinetic += mp[i] * op[i] * vp[i];
         p[i % 3] += mp[i] * vn[i];
         ext_before += ep[i] * 0.5 * dt_old * op[i];
         ext_after += ep[i] * 0.5 * dt_new * vp[i];

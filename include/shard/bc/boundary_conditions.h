@@ -81,6 +81,13 @@ namespace shard::bc
     std::array<double, 3>
     wall_normal(const std::string &name) const;
 
+    /**
+     * @brief The faces every condition acts on: (body name, boundary id, -1 for all faces).
+     * Particles on them interpolate (ParticleSet).
+     */
+    std::vector<std::pair<std::string, int>>
+    faces() const;
+
     /// Adds traction forces at time @p t into the owned entries of @p f.
     void
     add_external_forces(double t, mesh::Vector &f) const;

@@ -52,10 +52,12 @@ namespace shard::fe
     check_parameters(const base::PrmSource &source) const override;
 
     /**
-     * @brief Builds the element arrays from the locally owned cells.
+     * @brief Builds the element arrays from the locally owned cells, except those of the bodies
+     * flagged in @p skip_bodies (bodies made of particles).
      */
     void
-    prepare(const mesh::Discretization &discretization, const materials::MaterialLibrary &library);
+    prepare(const mesh::Discretization &discretization, const materials::MaterialLibrary &library,
+            const std::vector<bool> &skip_bodies = {});
 
     /**
      * @brief Adds rho0 V0 / 8 of every owned element to its nodes (all three components).

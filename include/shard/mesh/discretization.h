@@ -168,6 +168,16 @@ namespace shard::mesh
     std::vector<unsigned int>
     body_nodes(unsigned int body) const;
 
+    /**
+     * @brief Adds @p extra (global DOF indices, owned ones are ignored) to the ghost set and
+     * rebuilds the partitioner and the reference positions. Local indices of ghosts change:
+     * call it before any component stores local indices (ParticleSet does, for its two-hop
+     * stencil).
+     * @note Collective.
+     */
+    void
+    add_ghost_dofs(const dealii::IndexSet &extra);
+
   private:
     MPI_Comm                                                comm_;
     std::vector<std::string>                                body_names_ = {"body"};

@@ -9,6 +9,7 @@
 
 #include <shard/base/parameters.h>
 #include <shard/fe/hex_force.h>
+#include <shard/particles/spg_force.h>
 #include <shard/mesh/discretization.h>
 
 #include <string>
@@ -61,10 +62,14 @@ namespace shard::output
 
     /// Creates the output directory. @note Collective.
     void
-    prepare(const mesh::Discretization &discretization, const fe::HexForce &hex);
+    prepare(const mesh::Discretization &discretization, const fe::HexForce &hex,
+            const particles::SpgForce &particles);
 
     /**
-     * @brief Writes the fields at @p time. @p d and @p v must have ghost values set.
+     * @brief Writes the fields at @p time: the mesh series solution.pvd and, with particles,
+     * the point series particles.pvd (positions X + u, physical displacement u, coefficient
+     * velocity, stress, von Mises stress, plastic strain, failed, material, rank).
+     * @p d (physical displacement) and @p v must have ghost values set.
      * @note Collective.
      */
     void
@@ -86,7 +91,11 @@ namespace shard::output
 
     const mesh::Discretization                *discretization_ = nullptr;
     const fe::HexForce                        *hex_            = nullptr;
-    std::vector<std::pair<double, std::string>> records_;
+    const particles::SpgForce                 *particles_      = nullptr;
+    std::vector<std::pair<double, std::string>> records_, particle_records_;
+
+    void
+    write_particles(double time, const mesh::Vector &d, const mesh::Vector &v);
   };
 
   /// Writes @p content to @p path through a temporary file and a rename (atomic on POSIX).

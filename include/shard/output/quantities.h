@@ -10,6 +10,7 @@
 #include <shard/base/parameters.h>
 #include <shard/bc/boundary_conditions.h>
 #include <shard/fe/hex_force.h>
+#include <shard/particles/spg_force.h>
 #include <shard/mesh/discretization.h>
 
 #include <string>
@@ -43,7 +44,7 @@ namespace shard::output
     /// Resolves bodies, conditions and points. @note Collective.
     void
     prepare(const mesh::Discretization &discretization, const fe::HexForce &hex,
-            const bc::BoundaryConditions &conditions);
+            const bc::BoundaryConditions &conditions, const particles::SpgForce &particles);
 
     /// Column names.
     std::vector<std::string>
@@ -65,7 +66,9 @@ namespace shard::output
       std::vector<std::string> args;
       int                      body = -1, component = 0, boundary_id = -1;
       std::vector<unsigned int> nodes;
+      std::vector<double>       signs; // odd_even: (-1)^(i+j+k) per node
       int                      element = -1; // local element index owning the point
+      int                      particle = -1; // or the owned particle closest to it
       unsigned int             node    = 0;
       bool                     owns_node = false;
     };
@@ -74,6 +77,7 @@ namespace shard::output
     std::vector<Item>             items_;
     const mesh::Discretization   *discretization_ = nullptr;
     const fe::HexForce           *hex_            = nullptr;
+    const particles::SpgForce    *particles_      = nullptr;
     const bc::BoundaryConditions *conditions_     = nullptr;
 
     std::vector<Item>

@@ -56,8 +56,10 @@ namespace shard::particles
     double residual_coefficient = 0.1;
     /// N of R1 (steps).
     unsigned int filter_interval = 15;
-    /// Petrov-Galerkin variationally consistent correction of the test-function gradients.
-    bool gradient_correction = true;
+    /// Petrov-Galerkin variationally consistent correction of the test-function gradients
+    /// (off by default: it makes the stiffness non-symmetric, with complex eigenvalues that
+    /// grow in dynamics; doc/theory/spg_stabilization.md).
+    bool gradient_correction = false;
   };
 
   /// Particle data a stencil build needs, indexed by cloud position (sorted by global id).

@@ -13,6 +13,8 @@
 #include <shard/mesh/discretization.h>
 #include <shard/output/field_output.h>
 #include <shard/output/quantities.h>
+#include <shard/particles/particle_set.h>
+#include <shard/particles/spg_force.h>
 #include <shard/time/central_difference.h>
 
 #include <array>
@@ -96,18 +98,21 @@ namespace shard
     // Components in dependency order.
     mesh::Discretization         discretization_;
     materials::MaterialLibrary   materials_;
+    particles::ParticleSet       particles_;
     fe::HexForce                 hex_;
+    particles::SpgForce          spg_;
     bc::BoundaryConditions       conditions_;
     time::CentralDifference      integrator_;
     output::FieldOutput          output_;
     output::Quantities           quantities_;
 
     // State vectors, all with the one layout of Discretization.
-    mesh::Vector d_, v_, v_now_, f_, f_ext_, mass_;
+    mesh::Vector d_, v_, v_now_, f_, f_ext_, mass_, d_phys_;
 
     // Bookkeeping.
     time::LocalBalance balance_;
     double             internal_energy_ = 0, hourglass_energy_ = 0;
+    double             stabilization_energy_ = 0, filter_work_ = 0;
     double             reference_energy_ = 0, initial_energy_ = 0;
     double             t_ = 0, dt_ = 0, dt_next_ = 0, stable_dt_ = 0;
     unsigned int       step_ = 0;
@@ -118,6 +123,9 @@ namespace shard
 
     void
     record();
+    /// Physical displacement for output and quantities: d, with u = A d at the particles.
+    const mesh::Vector &
+    physical_displacement();
     void
     write_summary(const RunResult &result, double wall_time) const;
   };

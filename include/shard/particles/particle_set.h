@@ -1,0 +1,165 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+/**
+ * @file particle_set.h
+ * @brief Bodies discretized by particles: particles at the nodes of the body's hex mesh,
+ *        their volumes, spacings and boundary data, the RK stencils and the ghost set.
+ *        Subsection `E - Particles`.
+ * @ingroup particles
+ */
+#pragma once
+
+#include <shard/base/parameters.h>
+#include <shard/mesh/discretization.h>
+#include <shard/particles/spg_operator.h>
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace shard::particles
+{
+  /**
+   * @brief The particle set (node-based scheme, formulation.md section 7): every node of a
+   * particle body is a particle whose coefficient d_K is the node's DOF triple in the one
+   * distributed vector; V_I = sum of V_e / 8 over its cells, m_I = the lumped FE mass.
+   *
+   * prepare() gathers the particle table of all ranks (global DOF, X, V, spacing, outward area
+   * vector, boundary flag), builds the stencils of the owned particles with
+   * build_local_stencils() and adds the two-hop coefficients to the ghost set of the
+   * Discretization. The table is replicated on every rank at set-up (O(N) memory per rank,
+   * 104 bytes per particle); see doc/manual/particles.md for that limit.
+   */
+  class ParticleSet : public base::ParameterOwner
+  {
+  public:
+    bool
+    declare_parameters(dealii::ParameterHandler &prm) override;
+
+    void
+    check_parameters(const base::PrmSource &source) const override;
+
+    /**
+     * @brief Builds the particle set. Particles on the faces listed in @p interpolating_faces
+     * (body name, boundary id, -1 for all faces of the body) get interpolating rows.
+     * @throws base::InputError if a listed body does not exist.
+     * @note Collective; changes the ghost set of @p discretization.
+     */
+    void
+    prepare(mesh::Discretization &discretization, const std::vector<std::pair<std::string, int>> &interpolating_faces,
+            const base::PrmSource &source);
+
+    /// Whether any body is made of particles.
+    bool
+    active() const
+    {
+      return !body_names_.empty();
+    }
+
+    /// Whether body @p b is made of particles.
+    bool
+    is_particle_body(unsigned int b) const
+    {
+      return b < particle_body_.size() && particle_body_[b];
+    }
+
+    /// Flags per body (true = particles), for the FE loop to skip those cells.
+    const std::vector<bool> &
+    particle_bodies() const
+    {
+      return particle_body_;
+    }
+
+    /// The local stencils (compact K numbering: owned particles first).
+    const LocalStencils &
+    stencils() const
+    {
+      return stencils_;
+    }
+
+    /// Local vector index of the first DOF of compact coefficient @p k.
+    unsigned int
+    local_dof(unsigned int k) const
+    {
+      return local_dof_[k];
+    }
+
+    /// Number of owned particles (rows I).
+    unsigned int
+    n_owned() const
+    {
+      return stencils_.n_i;
+    }
+
+    /// Number of particles over all ranks.
+    unsigned long long
+    n_global() const
+    {
+      return n_global_;
+    }
+
+    /// Reference volume of owned particle @p i.
+    double
+    volume(unsigned int i) const
+    {
+      return volume_[i];
+    }
+
+    /// Outward area vectors of the owned particles (3 each, zero inside the body).
+    const std::vector<double> &
+    area_vectors() const
+    {
+      return area_;
+    }
+
+    /// Spacing per direction of owned particle @p i.
+    const Point3 &
+    spacing(unsigned int i) const
+    {
+      return spacing_[i];
+    }
+
+    /// Reference position of owned particle @p i.
+    const Point3 &
+    position(unsigned int i) const
+    {
+      return position_[i];
+    }
+
+    /// Body index of owned particle @p i.
+    unsigned int
+    body(unsigned int i) const
+    {
+      return body_[i];
+    }
+
+    /// Global DOF of owned particle @p i divided by 3 (its global particle id).
+    unsigned long long
+    global_id(unsigned int i) const
+    {
+      return global_id_[i];
+    }
+
+    /// The RK parameters (dilation, support, condition limit).
+    const RkParameters &
+    rk_parameters() const
+    {
+      return rk_;
+    }
+
+  private:
+    std::string              body_names_text_;
+    std::vector<std::string> body_names_;
+    std::string              support_text_ = "box";
+    RkParameters             rk_;
+    bool                     declared_ = false;
+
+    std::vector<bool>               particle_body_;
+    LocalStencils                   stencils_;
+    std::vector<unsigned int>       local_dof_;
+    std::vector<double>             volume_, area_;
+    std::vector<Point3>             spacing_, position_;
+    std::vector<unsigned int>       body_;
+    std::vector<unsigned long long> global_id_;
+    unsigned long long              n_global_ = 0;
+  };
+} // namespace shard::particles

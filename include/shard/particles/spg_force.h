@@ -1,0 +1,170 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+/**
+ * @file spg_force.h
+ * @brief Internal force of the particles: two-level kinematics, material update per batch,
+ *        nodal integration, stabilization and gradient correction. Subsection
+ *        `F - Particle formulation`.
+ * @ingroup particles
+ */
+#pragma once
+
+#include <shard/base/parameters.h>
+#include <shard/fe/hex_force.h>
+#include <shard/materials/material_library.h>
+#include <shard/particles/particle_set.h>
+#include <shard/particles/spg_operator.h>
+
+#include <string>
+#include <vector>
+
+namespace shard::particles
+{
+  /// What one particle force evaluation returns.
+  struct ParticleForceResult
+  {
+    /// Smallest L_I / c_I of the owned particles (s).
+    double stable_dt = 1e300;
+    /// Stress work of this step, owned particles (J).
+    double internal_energy = 0.;
+    /// R2 energy W_s at the end of the step, owned particles (J).
+    double stabilization_energy = 0.;
+  };
+
+  /**
+   * @brief Owns the particle state (F, stress, material history per owned particle) and
+   * computes the particle forces into the one force vector.
+   *
+   * The stress update is the same hypo-elastic path as the hexahedra: the strain increment
+   * and spin come from dF F_mid^-1, the stored Cauchy stress is rotated by Hughes-Winget,
+   * and the material is called once per batch of 64 particles. The force is the
+   * total-Lagrangian f = A^T G^T (V P) with P = J sigma F^-T.
+   */
+  class SpgForce : public base::ParameterOwner
+  {
+  public:
+    bool
+    declare_parameters(dealii::ParameterHandler &prm) override;
+
+    void
+    check_parameters(const base::PrmSource &source) const override;
+
+    /**
+     * @brief Builds the particle state, the residual weights and the gradient correction.
+     * @note Collective.
+     */
+    void
+    prepare(const mesh::Discretization &discretization, const ParticleSet &particles,
+            const materials::MaterialLibrary &library);
+
+    /// Adds rho0 V_I to the owned particle DOFs (call after the FE mass is compressed).
+    void
+    add_lumped_mass(mesh::Vector &mass) const;
+
+    /// Smallest L_I / c over the owned particles at t = 0 (collective).
+    double
+    initial_stable_dt() const;
+
+    /**
+     * @brief R1, at the exchange point of a filter step: replaces the owned coefficients and
+     * velocities by A d and A v (ghost values of @p d and @p v must be current; the caller
+     * exchanges again afterwards).
+     * @param f the total force of the last step, to estimate the internal-energy change
+     * @return the energy the filter added on this rank (J; negative when it dissipates)
+     */
+    double
+    filter(unsigned int step, const mesh::Vector &mass, const mesh::Vector &f, mesh::Vector &d, mesh::Vector &v);
+
+    /// Whether step @p step is a filter step.
+    bool
+    is_filter_step(unsigned int step) const
+    {
+      return active_ && options_.stabilization == Stabilization::filter && step % options_.filter_interval == 0;
+    }
+
+    /**
+     * @brief Adds the particle forces at the end of the step into @p f (owned and ghost
+     * entries; compress(add) afterwards) and updates the particle state.
+     * @param d coefficients at the end of the step, ghost values set
+     * @param dt step size
+     * @throws fe::Instability on an inverted particle (det F <= 0) or a non-finite stress.
+     */
+    ParticleForceResult
+    add_internal_forces(const mesh::Vector &d, double dt, unsigned int step, mesh::Vector &f);
+
+    /**
+     * @brief Writes the physical displacement u_I = (A d)_I of the last force evaluation into
+     * the owned particle entries of @p out (other entries untouched).
+     */
+    void
+    physical_displacement(mesh::Vector &out) const;
+
+    /// Whether there are particles.
+    bool
+    active() const
+    {
+      return active_;
+    }
+
+    /// Number of owned particles.
+    unsigned int
+    n_owned() const
+    {
+      return particles_ ? particles_->n_owned() : 0u;
+    }
+
+    /// Cauchy stress of owned particle @p i (6: xx yy zz yz xz xy).
+    const double *
+    stress(unsigned int i) const
+    {
+      return &stress_[6 * i];
+    }
+
+    /// A named state slot of owned particle @p i (0 if the material has no such slot).
+    double
+    state_value(unsigned int i, const std::string &name) const;
+
+    /// The particle set.
+    const ParticleSet &
+    particles() const
+    {
+      return *particles_;
+    }
+
+    /// The options.
+    const FormulationOptions &
+    options() const
+    {
+      return options_;
+    }
+
+  private:
+    struct Group
+    {
+      const materials::Material *material = nullptr;
+      unsigned int               begin = 0, end = 0, n_slots = 0;
+      std::vector<std::string>   slot_names;
+      std::vector<double>        state;
+    };
+
+    double             bulk_q1_            = 0.06;
+    double             bulk_q2_            = 1.5;
+    std::string        smoothing_text_     = "two-level";
+    std::string        stabilization_text_ = "residual";
+    FormulationOptions options_;
+    bool               declared_ = false, active_ = false;
+
+    const ParticleSet           *particles_ = nullptr;
+    const mesh::Discretization  *discretization_ = nullptr;
+    SpgOperator                  op_;
+    std::vector<Group>           groups_;
+    std::vector<unsigned int>    group_of_;
+    std::vector<double>          F_, stress_, q_, density_, length_;
+    mutable std::vector<double>  dk_, u_, fk_, Fnew_, VP_;
+
+    void
+    gather(const mesh::Vector &v, std::vector<double> &out) const;
+
+    [[noreturn]] void
+    fail(unsigned int i, unsigned int step, const std::string &what) const;
+  };
+} // namespace shard::particles

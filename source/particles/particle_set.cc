@@ -1,0 +1,269 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/fe/hex_kernel.h>
+#include <shard/particles/particle_set.h>
+
+#include <deal.II/base/mpi.h>
+
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <numeric>
+#include <sstream>
+
+namespace shard::particles
+{
+  using namespace dealii;
+
+  namespace
+  {
+    /// Doubles per particle in the gathered table.
+    constexpr unsigned int record = 13;
+    enum Field
+    {
+      f_id = 0,
+      f_x  = 1,
+      f_v  = 4,
+      f_h  = 5,
+      f_a  = 8,
+      f_interpolating = 11,
+      f_body          = 12
+    };
+  } // namespace
+
+  bool
+  ParticleSet::declare_parameters(ParameterHandler &prm)
+  {
+    if (declared_)
+      return false;
+    declared_ = true;
+    prm.enter_subsection("E - Particles");
+    prm.add_parameter("bodies", body_names_text_,
+                      "Bodies (names from 'B - Mesh/body names', comma separated) discretized by particles "
+                      "instead of elements: one particle at every node of the body's hex mesh, volume = sum of "
+                      "V_e/8, mass = lumped FE mass. Empty: no particles.");
+    prm.add_parameter("dilation", rk_.dilation,
+                      "Support radius over particle spacing (per direction: largest incident cell extent). "
+                      "Unit: 1. Range: >= 1; 1.4 to 1.8 advised (larger is costlier and weakens the odd-even "
+                      "control of the smoothing).",
+                      Patterns::Double());
+    prm.add_parameter("support", support_text_,
+                      "Kernel support: box (tensor-product cubic B-spline, 27 neighbours at 1 < dilation <= 2 on a "
+                      "lattice) or sphere (cubic B-spline of the scaled distance).",
+                      Patterns::Selection("box|sphere"));
+    prm.add_parameter("condition limit", rk_.rcond_limit,
+                      "Smallest reciprocal condition number of the scaled moment matrix. A particle below it "
+                      "(or with fewer than 4 neighbours) uses Shepard functions (constant consistency only) and "
+                      "is reported. Unit: 1. Range: 0 to 1.",
+                      Patterns::Double(0, 1));
+    prm.leave_subsection();
+    return true;
+  }
+
+  void
+  ParticleSet::check_parameters(const base::PrmSource &source) const
+  {
+    if (!(rk_.dilation >= 1.0) || !std::isfinite(rk_.dilation))
+      source.fail("E - Particles/dilation", std::to_string(rk_.dilation),
+                  "must be >= 1: at 1 only the particle itself lies in its support and the moment matrix is "
+                  "singular. Unit: 1. Advised: 1.4 to 1.8.");
+  }
+
+  void
+  ParticleSet::prepare(mesh::Discretization &discretization,
+                       const std::vector<std::pair<std::string, int>> &interpolating_faces,
+                       const base::PrmSource &source)
+  {
+    MPI_Comm           comm = discretization.communicator();
+    const unsigned int rank = Utilities::MPI::this_mpi_process(comm);
+    rk_.support             = support_text_ == "sphere" ? Support::sphere : Support::box;
+    body_names_             = base::split(body_names_text_, ',');
+    const auto &bodies      = discretization.bodies();
+    particle_body_.assign(bodies.size(), false);
+    for (const auto &name : body_names_)
+      {
+        const int b = discretization.body_index(name);
+        if (b < 0)
+          source.fail("E - Particles/bodies", body_names_text_, "no body named '" + name + "' in 'B - Mesh/body names'.");
+        particle_body_[b] = true;
+      }
+    if (!active())
+      return;
+    if (rank == 0 && !rk_.warning().empty())
+      std::cerr << "warning: E - Particles: " << rk_.warning() << "\n";
+
+    // Nodal volume, spacing, outward area vector and the interpolating flag, summed over cells.
+    const auto  &dh = discretization.dof_handler();
+    const auto  &pt = *discretization.partitioner();
+    mesh::Vector volume(discretization.partitioner()), spacing(discretization.partitioner()),
+      area(discretization.partitioner()), flag(discretization.partitioner());
+    for (const auto &cell : dh.active_cell_iterators())
+      if (cell->is_locally_owned() && particle_body_[cell->material_id()])
+        {
+          double x[8][3], B[8][3], lo[3], hi[3];
+          for (unsigned int v = 0; v < 8; ++v)
+            for (unsigned int c = 0; c < 3; ++c)
+              x[v][c] = cell->vertex(v)[c];
+          const double ve = fe::hex_volume_gradient(x, B);
+          for (unsigned int c = 0; c < 3; ++c)
+            {
+              lo[c] = hi[c] = x[0][c];
+              for (unsigned int v = 1; v < 8; ++v)
+                lo[c] = std::min(lo[c], x[v][c]), hi[c] = std::max(hi[c], x[v][c]);
+            }
+          for (unsigned int v = 0; v < 8; ++v)
+            {
+              const unsigned int j = pt.global_to_local(cell->vertex_dof_index(v, 0));
+              volume.local_element(j) += ve / 8;
+              for (unsigned int c = 0; c < 3; ++c)
+                spacing.local_element(j + c) = std::max(spacing.local_element(j + c), hi[c] - lo[c]);
+            }
+          const std::string &body_name = bodies[cell->material_id()].name;
+          for (const unsigned int f : cell->face_indices())
+            if (cell->face(f)->at_boundary())
+              {
+                const auto   face = cell->face(f);
+                // Face vertices 0..3 in lexicographic order: diagonals 0-3 and 1-2.
+                Tensor<1, 3> n = 0.5 * cross_product_3d(face->vertex(3) - face->vertex(0),
+                                                        face->vertex(2) - face->vertex(1));
+                if (n * (face->center() - cell->center()) < 0)
+                  n = -n;
+                bool interpolating = false;
+                for (const auto &[b, id] : interpolating_faces)
+                  interpolating |= b == body_name && (id < 0 || id == static_cast<int>(face->boundary_id()));
+                for (unsigned int v = 0; v < 4; ++v)
+                  {
+                    const unsigned int j = pt.global_to_local(face->vertex_dof_index(v, 0));
+                    for (unsigned int c = 0; c < 3; ++c)
+                      area.local_element(j + c) += n[c] / 4;
+                    if (interpolating)
+                      flag.local_element(j) = 1;
+                  }
+              }
+        }
+    volume.compress(VectorOperation::add);
+    area.compress(VectorOperation::add);
+    spacing.compress(VectorOperation::max);
+    flag.compress(VectorOperation::max);
+
+    // The table of this rank's particles, then of all ranks.
+    const auto         &X = discretization.reference_positions();
+    std::vector<double> mine;
+    for (unsigned int b = 0; b < bodies.size(); ++b)
+      if (particle_body_[b])
+        for (const unsigned int j : discretization.body_nodes(b))
+          {
+            const double row[record] = {double(pt.local_to_global(j) / 3),
+                                        X.local_element(j),
+                                        X.local_element(j + 1),
+                                        X.local_element(j + 2),
+                                        volume.local_element(j),
+                                        spacing.local_element(j),
+                                        spacing.local_element(j + 1),
+                                        spacing.local_element(j + 2),
+                                        area.local_element(j),
+                                        area.local_element(j + 1),
+                                        area.local_element(j + 2),
+                                        flag.local_element(j),
+                                        double(b)};
+            mine.insert(mine.end(), row, row + record);
+          }
+    const auto all = Utilities::MPI::all_gather(comm, mine);
+    struct Entry
+    {
+      const double *row;
+      bool          owned;
+    };
+    std::vector<Entry> table;
+    for (unsigned int r = 0; r < all.size(); ++r)
+      for (std::size_t p = 0; p < all[r].size(); p += record)
+        table.push_back({&all[r][p], r == rank});
+    std::sort(table.begin(), table.end(), [](const Entry &a, const Entry &b) { return a.row[f_id] < b.row[f_id]; });
+    n_global_ = table.size();
+
+    ParticleCloud             cloud;
+    std::vector<unsigned int> owned;
+    for (unsigned int p = 0; p < table.size(); ++p)
+      {
+        const double *r = table[p].row;
+        cloud.position.push_back(Point3{{r[f_x], r[f_x + 1], r[f_x + 2]}});
+        cloud.spacing.push_back(Point3{{r[f_h], r[f_h + 1], r[f_h + 2]}});
+        cloud.interpolating.push_back(r[f_interpolating] > 0 ? 1 : 0);
+        if (table[p].owned)
+          owned.push_back(p);
+      }
+    // Rows grouped by body (hence by material), in id order within a body.
+    std::stable_sort(owned.begin(), owned.end(),
+                     [&](const unsigned int a, const unsigned int b) { return table[a].row[f_body] < table[b].row[f_body]; });
+    try
+      {
+        stencils_ = build_local_stencils(cloud, owned, rk_);
+      }
+    catch (const std::exception &e)
+      {
+        throw base::InputError(std::string("E - Particles: cannot build the RK stencils: ") + e.what());
+      }
+
+    // Two-hop coefficients become ghosts of the one distributed vector.
+    IndexSet extra(dh.n_dofs());
+    for (const unsigned int p : stencils_.cloud_index)
+      {
+        const types::global_dof_index g = 3 * static_cast<types::global_dof_index>(table[p].row[f_id]);
+        if (!pt.in_local_range(g))
+          extra.add_range(g, g + 3);
+      }
+    discretization.add_ghost_dofs(extra);
+    const auto &np = *discretization.partitioner();
+    local_dof_.resize(stencils_.n_k);
+    for (unsigned int k = 0; k < stencils_.n_k; ++k)
+      local_dof_[k] =
+        np.global_to_local(3 * static_cast<types::global_dof_index>(table[stencils_.cloud_index[k]].row[f_id]));
+
+    const unsigned int n = stencils_.n_i;
+    volume_.resize(n);
+    area_.resize(3 * n);
+    spacing_.resize(n);
+    position_.resize(n);
+    body_.resize(n);
+    global_id_.resize(n);
+    for (unsigned int i = 0; i < n; ++i)
+      {
+        const double *r = table[owned[i]].row;
+        volume_[i]      = r[f_v];
+        for (unsigned int c = 0; c < 3; ++c)
+          {
+            area_[3 * i + c] = r[f_a + c];
+            spacing_[i][c]   = r[f_h + c];
+            position_[i][c]  = r[f_x + c];
+          }
+        body_[i]      = static_cast<unsigned int>(r[f_body]);
+        global_id_[i] = static_cast<unsigned long long>(r[f_id]);
+        if (!(volume_[i] > 0))
+          throw base::InputError("E - Particles: particle " + std::to_string(global_id_[i]) + " has no volume");
+      }
+
+    // Report particles on the Shepard fallback (ill-conditioned moment matrix).
+    unsigned int n_fallback = stencils_.fallback.size();
+    for (unsigned int i = 0; i < n; ++i)
+      n_fallback += stencils_.a.fallback[i] && !stencils_.g.fallback[i];
+    const unsigned int total_fallback = Utilities::MPI::sum(n_fallback, comm);
+    if (total_fallback > 0)
+      {
+        std::ostringstream where;
+        if (!stencils_.fallback.empty())
+          {
+            const Point3 &x = cloud.position[stencils_.fallback[0]];
+            where << "; on rank " << rank << " the first is at (" << x[0] << ", " << x[1] << ", " << x[2] << ") m";
+          }
+        const auto all_where = Utilities::MPI::all_gather(comm, where.str());
+        std::string text;
+        for (const auto &w : all_where)
+          if (text.empty() && !w.empty())
+            text = w;
+        if (rank == 0)
+          std::cerr << "warning: E - Particles: " << total_fallback
+                    << " particles have an ill-conditioned moment matrix (rcond < " << rk_.rcond_limit
+                    << " or fewer than 4 neighbours) and use Shepard functions (constant consistency only)" << text
+                    << "\n";
+      }
+  }
+} // namespace shard::particles

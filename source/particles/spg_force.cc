@@ -1,0 +1,402 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/fe/hex_kernel.h>
+#include <shard/particles/spg_force.h>
+
+#include <deal.II/base/mpi.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace shard::particles
+{
+  using namespace dealii;
+
+  namespace
+  {
+    constexpr unsigned int batch_size = 64;
+
+    /// Determinant and inverse of a row-major 3x3 matrix.
+    double
+    invert(const double *a, double *inv)
+    {
+      inv[0]           = a[4] * a[8] - a[5] * a[7];
+      inv[1]           = a[2] * a[7] - a[1] * a[8];
+      inv[2]           = a[1] * a[5] - a[2] * a[4];
+      inv[3]           = a[5] * a[6] - a[3] * a[8];
+      inv[4]           = a[0] * a[8] - a[2] * a[6];
+      inv[5]           = a[2] * a[3] - a[0] * a[5];
+      inv[6]           = a[3] * a[7] - a[4] * a[6];
+      inv[7]           = a[1] * a[6] - a[0] * a[7];
+      inv[8]           = a[0] * a[4] - a[1] * a[3];
+      const double det = a[0] * inv[0] + a[1] * inv[3] + a[2] * inv[6];
+      for (unsigned int k = 0; k < 9; ++k)
+        inv[k] /= det;
+      return det;
+    }
+  } // namespace
+
+  bool
+  SpgForce::declare_parameters(ParameterHandler &prm)
+  {
+    if (declared_)
+      return false;
+    declared_ = true;
+    prm.enter_subsection("F - Particle formulation");
+    prm.add_parameter("smoothing", smoothing_text_,
+                      "two-level: direct displacement smoothing, u = A d at the particles and F from the gradients "
+                      "of the smoothing functions (default). none: direct nodal integration of the RK functions "
+                      "with the coefficients as nodal values (for comparison).",
+                      Patterns::Selection("two-level|none"));
+    prm.add_parameter("stabilization", stabilization_text_,
+                      "Remedy against odd-even modes (doc/theory/spg_stabilization.md): residual (R2, default): "
+                      "force from W = alpha/2 sum V M / a^2 |d - A d|^2; filter (R1): every N steps d <- A d and "
+                      "v <- A v; none (R0).",
+                      Patterns::Selection("residual|filter|none"));
+    prm.add_parameter("residual coefficient", options_.residual_coefficient,
+                      "alpha of the residual stabilization. Unit: 1. Range: 0 to 10; the spectral test passes from "
+                      "0.03 on, 0.1 is the default.",
+                      Patterns::Double(0, 10));
+    prm.add_parameter("filter interval", options_.filter_interval,
+                      "N of the filter (steps between two smoothings, like LS-DYNA's SMSTEP). Unit: steps. Range: >= 1.",
+                      Patterns::Integer(1));
+    prm.add_parameter("bulk viscosity linear", bulk_q1_,
+                      "Linear coefficient Q1 of the bulk viscosity q = rho L (Q2 L tr(D)^2 - Q1 c tr(D)), applied "
+                      "in compression (tr(D) < 0) like LS-DYNA's default for solids; damps the ringing behind "
+                      "shock fronts. Its work is part of the internal energy. Unit: 1. Range: 0 to 1.",
+                      Patterns::Double(0, 1));
+    prm.add_parameter("bulk viscosity quadratic", bulk_q2_,
+                      "Quadratic coefficient Q2 of the bulk viscosity. Unit: 1. Range: 0 to 4.", Patterns::Double(0, 4));
+    prm.add_parameter("gradient correction", options_.gradient_correction,
+                      "Variationally consistent (Petrov-Galerkin) correction of the test-function gradients, so "
+                      "that nodal integration meets the integration constraint and passes the Galerkin patch test "
+                      "to round-off. Off by default: it makes the stiffness non-symmetric; on free surfaces the "
+                      "spectrum becomes complex and a free vibration grows (doc/theory/spg_stabilization.md).");
+    prm.leave_subsection();
+    return true;
+  }
+
+  void
+  SpgForce::check_parameters(const base::PrmSource &source) const
+  {
+    if (!(options_.residual_coefficient >= 0 && options_.residual_coefficient <= 10))
+      source.fail("F - Particle formulation/residual coefficient", std::to_string(options_.residual_coefficient),
+                  "must be in [0, 10]. Unit: 1.");
+  }
+
+  void
+  SpgForce::prepare(const mesh::Discretization &discretization, const ParticleSet &particles,
+                    const materials::MaterialLibrary &library)
+  {
+    particles_      = &particles;
+    discretization_ = &discretization;
+    active_         = particles.active();
+    options_.smoothing     = smoothing_text_ == "none" ? Smoothing::none : Smoothing::two_level;
+    options_.stabilization = stabilization_text_ == "filter" ? Stabilization::filter :
+                             stabilization_text_ == "none"   ? Stabilization::none :
+                                                               Stabilization::residual;
+    if (!active_)
+      return;
+    const auto        &st = particles.stencils();
+    const unsigned int n  = st.n_i;
+    const auto        &bodies = discretization.bodies();
+
+    // Material groups: runs of owned rows with the same material (rows are sorted by body).
+    groups_.clear();
+    group_of_.resize(n);
+    for (unsigned int i = 0; i < n; ++i)
+      {
+        const auto *m = &library.get(bodies[particles.body(i)].material);
+        if (groups_.empty() || groups_.back().material != m)
+          {
+            groups_.emplace_back();
+            groups_.back().material = m;
+            groups_.back().begin    = i;
+          }
+        groups_.back().end = i + 1;
+        group_of_[i]       = groups_.size() - 1;
+      }
+    for (auto &g : groups_)
+      {
+        g.slot_names = g.material->state_slot_names();
+        g.n_slots    = g.slot_names.size();
+        g.state.assign(std::size_t(g.end - g.begin) * g.n_slots, 0.);
+        g.material->initialize_state(g.end - g.begin, g.state.data());
+      }
+    F_.assign(9 * n, 0.);
+    for (unsigned int i = 0; i < n; ++i)
+      F_[9 * i] = F_[9 * i + 4] = F_[9 * i + 8] = 1.;
+    stress_.assign(6 * n, 0.);
+    q_.assign(n, 0.);
+    density_.resize(n);
+    length_.resize(n);
+    std::vector<double> lambda(n);
+    for (unsigned int i = 0; i < n; ++i)
+      {
+        const auto  *m = groups_[group_of_[i]].material;
+        const auto  &h = particles.spacing(i);
+        density_[i]    = m->density();
+        length_[i]     = std::min({h[0], h[1], h[2]});
+        const double a = particles.rk_parameters().dilation * (h[0] + h[1] + h[2]) / 3.;
+        const double c = m->initial_wave_speed();
+        lambda[i]      = particles.volume(i) * m->density() * c * c / (a * a);
+      }
+    op_.reinit(st, options_, lambda);
+    dk_.assign(3 * st.n_k, 0.);
+    fk_.assign(3 * st.n_k, 0.);
+    u_.assign(3 * st.n_j, 0.);
+    Fnew_.assign(9 * n, 0.);
+    VP_.assign(9 * n, 0.);
+
+    if (options_.gradient_correction)
+      {
+        // Integration-constraint terms summed over ranks, xi_K = (b_K - c_K) / w_K.
+        std::vector<double> c(3 * st.n_k), b(3 * st.n_k), w(st.n_k), volume(n);
+        for (unsigned int i = 0; i < n; ++i)
+          volume[i] = particles.volume(i);
+        op_.integration_terms(volume.data(), particles.area_vectors().data(), c.data(), b.data(), w.data());
+        mesh::Vector cv, bv, wv;
+        for (auto *v : {&cv, &bv, &wv})
+          discretization.initialize_vector(*v);
+        for (unsigned int k = 0; k < st.n_k; ++k)
+          for (unsigned int i = 0; i < 3; ++i)
+            {
+              const unsigned int j = particles.local_dof(k) + i;
+              cv.local_element(j) += c[3 * k + i];
+              bv.local_element(j) += b[3 * k + i];
+              wv.local_element(j) += w[k];
+            }
+        for (auto *v : {&cv, &bv, &wv})
+          v->compress(VectorOperation::add);
+        for (unsigned int k = 0; k < st.n_i; ++k)
+          for (unsigned int i = 0; i < 3; ++i)
+            {
+              const unsigned int j = particles.local_dof(k) + i;
+              cv.local_element(j)  = wv.local_element(j) > 0 ? (bv.local_element(j) - cv.local_element(j)) /
+                                                                  wv.local_element(j) :
+                                                                0.;
+            }
+        cv.update_ghost_values();
+        std::vector<double> xi(3 * st.n_k);
+        for (unsigned int k = 0; k < st.n_k; ++k)
+          for (unsigned int i = 0; i < 3; ++i)
+            xi[3 * k + i] = cv.local_element(particles.local_dof(k) + i);
+        op_.set_gradient_correction(std::move(xi));
+      }
+  }
+
+  void
+  SpgForce::add_lumped_mass(mesh::Vector &mass) const
+  {
+    for (unsigned int i = 0; i < n_owned(); ++i)
+      for (unsigned int c = 0; c < 3; ++c)
+        mass.local_element(particles_->local_dof(i) + c) += density_[i] * particles_->volume(i);
+  }
+
+  double
+  SpgForce::initial_stable_dt() const
+  {
+    double dt = 1e300;
+    for (unsigned int i = 0; i < n_owned(); ++i)
+      dt = std::min(dt, length_[i] / groups_[group_of_[i]].material->initial_wave_speed());
+    return Utilities::MPI::min(dt, discretization_->communicator());
+  }
+
+  void
+  SpgForce::gather(const mesh::Vector &v, std::vector<double> &out) const
+  {
+    const unsigned int n_k = particles_->stencils().n_k;
+    for (unsigned int k = 0; k < n_k; ++k)
+      {
+        const unsigned int j = particles_->local_dof(k);
+        out[3 * k]           = v.local_element(j);
+        out[3 * k + 1]       = v.local_element(j + 1);
+        out[3 * k + 2]       = v.local_element(j + 2);
+      }
+  }
+
+  double
+  SpgForce::filter(const unsigned int, const mesh::Vector &mass, const mesh::Vector &f, mesh::Vector &d,
+                   mesh::Vector &v)
+  {
+    const unsigned int  n = n_owned();
+    std::vector<double> smoothed(3 * n);
+    double              added = 0;
+    gather(d, dk_);
+    op_.smooth_owned(dk_.data(), smoothed.data());
+    for (unsigned int i = 0; i < n; ++i)
+      for (unsigned int c = 0; c < 3; ++c)
+        {
+          const unsigned int j = particles_->local_dof(i) + c;
+          // Internal-energy change to first order: f_int . delta d = -(f - f_ext) . delta d.
+          added -= f.local_element(j) * (smoothed[3 * i + c] - d.local_element(j));
+          d.local_element(j) = smoothed[3 * i + c];
+        }
+    gather(v, dk_);
+    op_.smooth_owned(dk_.data(), smoothed.data());
+    for (unsigned int i = 0; i < n; ++i)
+      for (unsigned int c = 0; c < 3; ++c)
+        {
+          const unsigned int j = particles_->local_dof(i) + c;
+          const double       vn = smoothed[3 * i + c], vo = v.local_element(j);
+          added += 0.5 * mass.local_element(j) * (vn * vn - vo * vo);
+          v.local_element(j) = vn;
+        }
+    return added;
+  }
+
+  void
+  SpgForce::fail(const unsigned int i, const unsigned int step, const std::string &what) const
+  {
+    const auto        &x = particles_->position(i);
+    std::ostringstream out;
+    out << "step " << step << ": " << what << " at particle " << particles_->global_id(i) << " of body '"
+        << discretization_->bodies()[particles_->body(i)].name << "' (reference position " << x[0] << ", " << x[1]
+        << ", " << x[2] << ") m";
+    throw fe::Instability(out.str());
+  }
+
+  double
+  SpgForce::state_value(const unsigned int i, const std::string &name) const
+  {
+    const auto &g  = groups_[group_of_[i]];
+    const auto  it = std::find(g.slot_names.begin(), g.slot_names.end(), name);
+    return it == g.slot_names.end() ?
+             0. :
+             g.state[std::size_t(i - g.begin) * g.n_slots + (it - g.slot_names.begin())];
+  }
+
+  ParticleForceResult
+  SpgForce::add_internal_forces(const mesh::Vector &d, const double dt, const unsigned int step, mesh::Vector &f)
+  {
+    ParticleForceResult result;
+    if (!active_)
+      return result;
+    gather(d, dk_);
+    op_.displacement(dk_.data(), u_.data());
+    op_.deformation_gradient(u_.data(), Fnew_.data());
+
+    double de[6 * batch_size], J[batch_size], length[batch_size], c[batch_size], stress_old[6 * batch_size],
+      volume_mid[batch_size];
+    for (auto &g : groups_)
+      for (unsigned int b0 = g.begin; b0 < g.end; b0 += batch_size)
+        {
+          const unsigned int nb = std::min(batch_size, g.end - b0);
+          for (unsigned int k = 0; k < nb; ++k)
+            {
+              const unsigned int i  = b0 + k;
+              const double      *Fo = &F_[9 * i], *Fn = &Fnew_[9 * i];
+              double             Fm[9], Fm_inv[9], L[9];
+              for (unsigned int a = 0; a < 9; ++a)
+                Fm[a] = 0.5 * (Fo[a] + Fn[a]);
+              const double det_m = invert(Fm, Fm_inv);
+              double       Fn_inv[9];
+              J[k] = invert(Fn, Fn_inv);
+              if (!(J[k] > 0) || !(det_m > 0))
+                fail(i, step, "inverted particle (det F = " + std::to_string(J[k]) + ")");
+              // dt L = (F_new - F_old) F_mid^-1.
+              for (unsigned int a = 0; a < 3; ++a)
+                for (unsigned int b = 0; b < 3; ++b)
+                  {
+                    double s = 0;
+                    for (unsigned int m = 0; m < 3; ++m)
+                      s += (Fn[3 * a + m] - Fo[3 * a + m]) * Fm_inv[3 * m + b];
+                    L[3 * a + b] = s;
+                  }
+              double *e = &de[6 * k];
+              e[0]      = L[0];
+              e[1]      = L[4];
+              e[2]      = L[8];
+              e[3]      = 0.5 * (L[5] + L[7]);
+              e[4]      = 0.5 * (L[2] + L[6]);
+              e[5]      = 0.5 * (L[1] + L[3]);
+              double W[3][3], R[3][3];
+              for (unsigned int a = 0; a < 3; ++a)
+                for (unsigned int b = 0; b < 3; ++b)
+                  W[a][b] = 0.5 * (L[3 * a + b] - L[3 * b + a]) / dt;
+              fe::hughes_winget_rotation(W, dt, R);
+              double *sig = &stress_[6 * i];
+              fe::rotate_symmetric(R, sig);
+              std::copy(sig, sig + 6, &stress_old[6 * k]);
+              length[k]     = length_[i] * std::cbrt(J[k]);
+              volume_mid[k] = particles_->volume(i) * det_m;
+            }
+
+          materials::PointBatch batch;
+          batch.n                     = nb;
+          batch.dt                    = dt;
+          batch.strain_increment      = de;
+          batch.relative_volume       = J;
+          batch.characteristic_length = length;
+          batch.stress                = &stress_[6 * b0];
+          batch.state                 = g.state.data() + std::size_t(b0 - g.begin) * g.n_slots;
+          batch.wave_speed            = c;
+          g.material->update(batch);
+
+          for (unsigned int k = 0; k < nb; ++k)
+            {
+              const unsigned int i   = b0 + k;
+              const double      *sig = &stress_[6 * i];
+              const double      *e   = &de[6 * k];
+              const double      *so  = &stress_old[6 * k];
+              double             work = 0;
+              for (unsigned int a = 0; a < 3; ++a)
+                work += (so[a] + sig[a]) * e[a] + 2. * (so[a + 3] + sig[a + 3]) * e[a + 3];
+              work *= 0.5 * volume_mid[k];
+              if (!std::isfinite(work) || !std::isfinite(c[k]))
+                fail(i, step, "non-finite stress (sigma_xx = " + std::to_string(sig[0]) + " Pa)");
+              // Bulk viscosity in compression (not stored; its work is dissipated into internal energy).
+              // Its work is booked like the stress work, with the mean of the q of both ends of the
+              // step (the central difference applies each force half to the step before and half to
+              // the step after it).
+              const double trd = e[0] + e[1] + e[2];
+              double       q   = 0;
+              if (trd < 0 && dt > 0)
+                {
+                  const double rate = trd / dt;
+                  q = density_[i] / J[k] * length[k] * (bulk_q2_ * length[k] * rate * rate - bulk_q1_ * c[k] * rate);
+                }
+              work -= 0.5 * (q_[i] + q) * trd * volume_mid[k];
+              q_[i] = q;
+              result.internal_energy += work;
+              // The bulk viscosity lowers the stable step (LS-DYNA's form of the correction).
+              const double qratio = bulk_q1_ - (trd < 0 && dt > 0 ? bulk_q2_ * length[k] * trd / dt / c[k] : 0.);
+              result.stable_dt =
+                std::min(result.stable_dt, length[k] / (c[k] * (std::sqrt(1 + qratio * qratio) + qratio)));
+              // V P = V J (sigma - q I) F^-T.
+              const double *Fn = &Fnew_[9 * i];
+              double        Fi[9];
+              invert(Fn, Fi);
+              const double s[3][3] = {
+                {sig[0] - q, sig[5], sig[4]}, {sig[5], sig[1] - q, sig[3]}, {sig[4], sig[3], sig[2] - q}};
+              const double scale   = particles_->volume(i) * J[k];
+              double      *vp      = &VP_[9 * i];
+              for (unsigned int a = 0; a < 3; ++a)
+                for (unsigned int b = 0; b < 3; ++b)
+                  vp[3 * a + b] = scale * (s[a][0] * Fi[3 * b] + s[a][1] * Fi[3 * b + 1] + s[a][2] * Fi[3 * b + 2]);
+            }
+        }
+    std::fill(fk_.begin(), fk_.end(), 0.);
+    op_.subtract_internal_force(VP_.data(), fk_.data());
+    if (options_.stabilization == Stabilization::residual)
+      result.stabilization_energy = op_.subtract_residual_force(dk_.data(), fk_.data());
+    const unsigned int n_k = particles_->stencils().n_k;
+    for (unsigned int k = 0; k < n_k; ++k)
+      {
+        const unsigned int j = particles_->local_dof(k);
+        f.local_element(j) += fk_[3 * k];
+        f.local_element(j + 1) += fk_[3 * k + 1];
+        f.local_element(j + 2) += fk_[3 * k + 2];
+      }
+    F_.swap(Fnew_);
+    return result;
+  }
+
+  void
+  SpgForce::physical_displacement(mesh::Vector &out) const
+  {
+    for (unsigned int i = 0; i < n_owned(); ++i)
+      for (unsigned int c = 0; c < 3; ++c)
+        out.local_element(particles_->local_dof(i) + c) = u_[3 * i + c];
+  }
+} // namespace shard::particles
