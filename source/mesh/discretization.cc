@@ -340,10 +340,8 @@ namespace shard::mesh
           if (cell->face(f)->at_boundary() &&
               (boundary_id < 0 || cell->face(f)->boundary_id() == static_cast<types::boundary_id>(boundary_id)))
             {
-              const auto face = cell->face(f);
-              // Face vertices 0..3 in lexicographic order: diagonals 0-3 and 1-2.
-              const Tensor<1, 3> d1 = face->vertex(3) - face->vertex(0), d2 = face->vertex(2) - face->vertex(1);
-              const double       a  = 0.5 * cross_product_3d(d1, d2).norm();
+              const auto   face = cell->face(f);
+              const double a    = outward_area_vector(cell, f).norm();
               for (unsigned int v = 0; v < 4; ++v)
                 area.local_element(partitioner_->global_to_local(face->vertex_dof_index(v, 0))) += a / 4;
             }
@@ -384,5 +382,16 @@ namespace shard::mesh
     reference_.reinit(partitioner_);
     reference_ = positions;
     reference_.update_ghost_values();
+  }
+
+  Tensor<1, 3>
+  outward_area_vector(const DoFHandler<3>::active_cell_iterator &cell, const unsigned int f)
+  {
+    const auto face = cell->face(f);
+    // Face vertices 0..3 in lexicographic order: diagonals 0-3 and 1-2.
+    Tensor<1, 3> n = 0.5 * cross_product_3d(face->vertex(3) - face->vertex(0), face->vertex(2) - face->vertex(1));
+    if (n * (face->center() - cell->center()) < 0)
+      n = -n;
+    return n;
   }
 } // namespace shard::mesh

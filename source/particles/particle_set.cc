@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
-#include <numeric>
 #include <sstream>
 
 namespace shard::particles
@@ -121,12 +120,8 @@ namespace shard::particles
           for (const unsigned int f : cell->face_indices())
             if (cell->face(f)->at_boundary())
               {
-                const auto   face = cell->face(f);
-                // Face vertices 0..3 in lexicographic order: diagonals 0-3 and 1-2.
-                Tensor<1, 3> n = 0.5 * cross_product_3d(face->vertex(3) - face->vertex(0),
-                                                        face->vertex(2) - face->vertex(1));
-                if (n * (face->center() - cell->center()) < 0)
-                  n = -n;
+                const auto         face = cell->face(f);
+                const Tensor<1, 3> n    = mesh::outward_area_vector(cell, f);
                 bool interpolating = false;
                 for (const auto &[b, id] : interpolating_faces)
                   interpolating |= b == body_name && (id < 0 || id == static_cast<int>(face->boundary_id()));

@@ -216,8 +216,7 @@ namespace shard::particles
   }
 
   double
-  SpgForce::filter(const unsigned int, const mesh::Vector &mass, const mesh::Vector &f, mesh::Vector &d,
-                   mesh::Vector &v)
+  SpgForce::filter(const mesh::Vector &mass, const mesh::Vector &f, mesh::Vector &d, mesh::Vector &v)
   {
     const unsigned int  n = n_owned();
     std::vector<double> smoothed(3 * n);
@@ -277,7 +276,7 @@ namespace shard::particles
     op_.deformation_gradient(u_.data(), Fnew_.data());
 
     double de[6 * batch_size], J[batch_size], length[batch_size], c[batch_size], stress_old[6 * batch_size],
-      volume_mid[batch_size];
+      volume_mid[batch_size], F_inv[9 * batch_size];
     for (auto &g : groups_)
       for (unsigned int b0 = g.begin; b0 < g.end; b0 += batch_size)
         {
@@ -290,8 +289,7 @@ namespace shard::particles
               for (unsigned int a = 0; a < 9; ++a)
                 Fm[a] = 0.5 * (Fo[a] + Fn[a]);
               const double det_m = invert(Fm, Fm_inv);
-              double       Fn_inv[9];
-              J[k] = invert(Fn, Fn_inv);
+              J[k]               = invert(Fn, &F_inv[9 * k]);
               if (!(J[k] > 0) || !(det_m > 0))
                 fail(i, step, "inverted particle (det F = " + std::to_string(J[k]) + ")");
               // dt L = (F_new - F_old) F_mid^-1.
@@ -364,9 +362,7 @@ namespace shard::particles
               result.stable_dt =
                 std::min(result.stable_dt, length[k] / (c[k] * (std::sqrt(1 + qratio * qratio) + qratio)));
               // V P = V J (sigma - q I) F^-T.
-              const double *Fn = &Fnew_[9 * i];
-              double        Fi[9];
-              invert(Fn, Fi);
+              const double *Fi = &F_inv[9 * k];
               const double s[3][3] = {
                 {sig[0] - q, sig[5], sig[4]}, {sig[5], sig[1] - q, sig[3]}, {sig[4], sig[3], sig[2] - q}};
               const double scale   = particles_->volume(i) * J[k];

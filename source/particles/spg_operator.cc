@@ -89,14 +89,12 @@ namespace shard::particles
           {
             out.a.columns.push_back(j);
             out.a.psi.push_back(1.);
-            out.a.grad.insert(out.a.grad.end(), 3, 0.);
           }
         else
           for (unsigned int e = a.row_offsets[j]; e < a.row_offsets[j + 1]; ++e)
             {
               out.a.columns.push_back(a.columns[e]);
               out.a.psi.push_back(a.psi[e]);
-              out.a.grad.insert(out.a.grad.end(), &a.grad[3 * e], &a.grad[3 * e] + 3);
             }
         out.a.fallback.push_back(a.fallback[j]);
         out.a.rcond.push_back(a.rcond[j]);
@@ -109,7 +107,6 @@ namespace shard::particles
   SpgOperator::reinit(const LocalStencils &stencils, const FormulationOptions &options,
                       const std::vector<double> &lambda)
   {
-    stencils_ = &stencils;
     options_  = options;
     n_i_      = stencils.n_i;
     n_j_      = stencils.n_j;

@@ -221,7 +221,7 @@ namespace shard
               // R1 filter steps smooth the particle coefficients and exchange once more.
               if (spg_.is_filter_step(step_))
                 {
-                  filter_work_ += spg_.filter(step_, mass_, f_, d_, v_);
+                  filter_work_ += spg_.filter(mass_, f_, d_, v_);
                   d_.update_ghost_values();
                   v_.update_ghost_values();
                 }
@@ -421,9 +421,10 @@ namespace shard
   const mesh::Vector &
   Simulation::physical_displacement()
   {
-    if (!spg_.active())
-      return d_;
-    d_phys_ = d_;
+    if (!spg_.active() || physical_step_ == step_)
+      return spg_.active() ? d_phys_ : d_;
+    physical_step_ = step_;
+    d_phys_        = d_;
     spg_.physical_displacement(d_phys_);
     d_phys_.update_ghost_values();
     return d_phys_;

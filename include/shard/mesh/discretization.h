@@ -63,6 +63,13 @@ namespace shard::mesh
   };
 
   /**
+   * @brief Outward area vector of face @p f of @p cell: half the cross product of the face
+   * diagonals (exact for planar quadrilaterals), oriented away from the cell centre.
+   */
+  dealii::Tensor<1, 3>
+  outward_area_vector(const dealii::DoFHandler<3>::active_cell_iterator &cell, unsigned int f);
+
+  /**
    * @brief Owns the bodies, the distributed triangulation, the Q1 vector element and the DoFs.
    *
    * All bodies are meshed in serial, refined, and merged into one coarse mesh that is then

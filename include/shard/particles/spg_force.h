@@ -72,7 +72,7 @@ namespace shard::particles
      * @return the energy the filter added on this rank (J; negative when it dissipates)
      */
     double
-    filter(unsigned int step, const mesh::Vector &mass, const mesh::Vector &f, mesh::Vector &d, mesh::Vector &v);
+    filter(const mesh::Vector &mass, const mesh::Vector &f, mesh::Vector &d, mesh::Vector &v);
 
     /// Whether step @p step is a filter step.
     bool

@@ -80,7 +80,8 @@ namespace shard::particles
    */
   struct LocalStencils
   {
-    /// A: n_j rows (particles J), columns compact K; psi used, identity rows where interpolating.
+    /// A: n_j rows (particles J), columns compact K; psi only (grad left empty), identity rows
+    /// where interpolating.
     Stencil a;
     /// G: n_i rows (owned particles I), columns compact J; grad used (grad Psi~_J(X_I)).
     Stencil g;
@@ -199,7 +200,6 @@ namespace shard::particles
   private:
     FormulationOptions        options_;
     unsigned int              n_i_ = 0, n_j_ = 0, n_k_ = 0;
-    const LocalStencils      *stencils_ = nullptr;
     std::vector<unsigned int> identity_offsets_, identity_columns_;
     std::vector<double>       identity_values_;
     SpgKernel                 kernel_;     // A used for u (identity for DNI) and G

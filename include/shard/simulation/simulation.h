@@ -116,6 +116,7 @@ namespace shard
     double             reference_energy_ = 0, initial_energy_ = 0;
     double             t_ = 0, dt_ = 0, dt_next_ = 0, stable_dt_ = 0;
     unsigned int       step_ = 0;
+    unsigned int       physical_step_ = ~0u;
     double             energy_error_ = 0, max_energy_error_ = 0;
     std::vector<double> q_final_, q_min_, q_max_;
     std::ofstream      history_;
@@ -123,7 +124,8 @@ namespace shard
 
     void
     record();
-    /// Physical displacement for output and quantities: d, with u = A d at the particles.
+    /// Physical displacement for output and quantities: d, with u = A d at the particles
+    /// (assembled once per step, then reused by the history row and the field output).
     const mesh::Vector &
     physical_displacement();
     void
