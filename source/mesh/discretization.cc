@@ -394,4 +394,27 @@ namespace shard::mesh
       n = -n;
     return n;
   }
+
+  std::array<Tensor<1, 3>, 4>
+  nodal_area_vectors(const DoFHandler<3>::active_cell_iterator &cell, const unsigned int f)
+  {
+    const auto                  face = cell->face(f);
+    std::array<Tensor<1, 3>, 4> a{};
+    const double                g    = 0.5 / std::sqrt(3.);
+    for (const double xi : {0.5 - g, 0.5 + g})
+      for (const double eta : {0.5 - g, 0.5 + g})
+        {
+          // Lexicographic face vertices: 0 (0,0), 1 (1,0), 2 (0,1), 3 (1,1).
+          const double       N[4] = {(1 - xi) * (1 - eta), xi * (1 - eta), (1 - xi) * eta, xi * eta};
+          const Tensor<1, 3> dxi  = (1 - eta) * (face->vertex(1) - face->vertex(0)) + eta * (face->vertex(3) - face->vertex(2));
+          const Tensor<1, 3> deta = (1 - xi) * (face->vertex(2) - face->vertex(0)) + xi * (face->vertex(3) - face->vertex(1));
+          const Tensor<1, 3> n    = 0.25 * cross_product_3d(dxi, deta); // Gauss weight 1/4
+          for (unsigned int v = 0; v < 4; ++v)
+            a[v] += N[v] * n;
+        }
+    if (outward_area_vector(cell, f) * (a[0] + a[1] + a[2] + a[3]) < 0)
+      for (auto &v : a)
+        v = -v;
+    return a;
+  }
 } // namespace shard::mesh

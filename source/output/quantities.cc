@@ -1,8 +1,10 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/base/function.h>
 #include <shard/materials/material.h>
 #include <shard/output/quantities.h>
 
 #include <deal.II/base/mpi.h>
+#include <deal.II/lac/vector.h>
 
 #include <algorithm>
 #include <cmath>
@@ -18,7 +20,8 @@ namespace shard::output
   {
     const std::map<std::string, unsigned int> n_args = {
       {"reaction", 2},       {"max_coordinate", 2}, {"min_coordinate", 2},    {"max_radius", 2},
-      {"stress", 4},         {"velocity", 4},       {"max_plastic_strain", 1}, {"odd_even", 1}};
+      {"stress", 4},         {"velocity", 4},       {"max_plastic_strain", 1}, {"odd_even", 1},
+      {"l2_error", 4}};
 
     int
     axis(const std::string &s)
@@ -41,7 +44,10 @@ namespace shard::output
                       "stress <x> <y> <z> <xx|yy|zz|yz|xz|xy|vm|p>; velocity <x> <y> <z> <x|y|z>; "
                       "max_plastic_strain <body|all>; odd_even <particle body>: |sum_I s_I u_I| / sum_I |u_I| with "
                       "s_I = (-1)^(i+j+k) from the particle's lattice indices (1 for a pure checkerboard, near 0 "
-                      "for smooth fields).");
+                      "for smooth fields); l2_error <body|all> <ux> <uy> <uz>: sqrt(sum_I m_I |u_I - u(X_I, t)|^2 / "
+                      "sum_I m_I) over the nodes or particles of the body (lumped mass m_I, physical displacement "
+                      "u_I) with the exact displacement u given as three muparser expressions of x, y, z "
+                      "(reference coordinates) and t, written without spaces (m).");
     prm.leave_subsection();
     return true;
   }
@@ -69,17 +75,32 @@ namespace shard::output
           {
             error = "entry '" + entry + "': unknown kind '" + it.kind +
                     "'; known: reaction, max_coordinate, min_coordinate, max_radius, stress, velocity, "
-                    "max_plastic_strain, odd_even.";
+                    "max_plastic_strain, odd_even, l2_error.";
             return {};
           }
         const bool optional_id = it.kind == "max_radius" && it.args.size() == 3;
         if (it.args.size() != n->second && !optional_id)
           {
             error = "entry '" + entry + "': '" + it.kind + "' takes " + std::to_string(n->second) +
-                    " arguments.";
+                    " arguments" +
+                    (it.kind == "l2_error" ? " (a body or 'all', then three expressions without spaces)" : "") + ".";
             return {};
           }
-        items.push_back(it);
+        if (it.kind == "l2_error")
+          try
+            {
+              it.exact = base::parse_vector_function(it.args[1] + ";" + it.args[2] + ";" + it.args[3], true);
+            }
+          catch (const std::invalid_argument &e)
+            {
+              // deal.II appends a stack trace to the parser's reason: keep the reason only.
+              std::string why = e.what();
+              why             = why.substr(0, why.find(" Stacktrace:"));
+              error = "entry '" + base::trim(entry) + "': exact displacement '" + it.args[1] + " " + it.args[2] +
+                      " " + it.args[3] + "': " + why;
+              return {};
+            }
+        items.push_back(std::move(it));
       }
     return items;
   }
@@ -159,6 +180,17 @@ namespace shard::output
             if (it.args[0] != "all" && it.body < 0)
               bad(it, "no body named '" + it.args[0] + "'.");
           }
+        else if (it.kind == "l2_error")
+          {
+            it.body = it.args[0] == "all" ? -1 : discretization.body_index(it.args[0]);
+            if (it.args[0] != "all" && it.body < 0)
+              bad(it, "no body named '" + it.args[0] + "'.");
+            // Bodies never share nodes, so the owned nodes of all bodies count each node once.
+            for (unsigned int k = 0; k < discretization.bodies().size(); ++k)
+              if (it.body < 0 || static_cast<int>(k) == it.body)
+                for (const auto j : discretization.body_nodes(k))
+                  it.nodes.push_back(j);
+          }
         else // stress, velocity at a reference point
           {
             double p[3];
@@ -227,13 +259,16 @@ namespace shard::output
   }
 
   std::vector<double>
-  Quantities::evaluate(const mesh::Vector &d, const mesh::Vector &v) const
+  Quantities::evaluate(const mesh::Vector &d, const mesh::Vector &v, const mesh::Vector &mass,
+                        const double t) const
   {
     const auto         &X = discretization_->reference_positions();
     const auto          comm = discretization_->communicator();
     std::vector<double> sums, maxima;
-    std::vector<int>    mode; // 0 sum, 1 max, 2 min (stored negated in maxima), 3 ratio of sums in ratios
-    std::vector<double> ratios;
+    // 0 sum, 1 max, 2 min (stored negated in maxima), 3 ratio of sums in ratios,
+    // 4 root of a mass-weighted mean (numerator and denominator in l2)
+    std::vector<int>    mode;
+    std::vector<double> ratios, l2;
     for (const auto &it : items_)
       {
         double value = 0;
@@ -309,21 +344,45 @@ namespace shard::output
             ratios.insert(ratios.end(), s, s + 4);
             m = 3;
           }
+        else if (it.kind == "l2_error")
+          {
+            it.exact->set_time(t);
+            dealii::Vector<double> u(3);
+            double                 s[2] = {0, 0};
+            for (const auto j : it.nodes)
+              {
+                it.exact->vector_value(Point<3>(X.local_element(j), X.local_element(j + 1), X.local_element(j + 2)),
+                                       u);
+                double e2 = 0;
+                for (unsigned int c = 0; c < 3; ++c)
+                  e2 += std::pow(d.local_element(j + c) - u[c], 2);
+                s[0] += mass.local_element(j) * e2;
+                s[1] += mass.local_element(j);
+              }
+            l2.insert(l2.end(), s, s + 2);
+            m = 4;
+          }
         mode.push_back(m);
         sums.push_back(m == 0 ? value : 0.);
-        if (m == 3)
+        if (m >= 3)
           m = 0;
         maxima.push_back(m == 0 ? -std::numeric_limits<double>::max() : value);
       }
     Utilities::MPI::sum(sums, comm, sums);
     Utilities::MPI::max(maxima, comm, maxima);
     Utilities::MPI::sum(ratios, comm, ratios);
+    Utilities::MPI::sum(l2, comm, l2);
     std::vector<double> out(items_.size());
-    for (unsigned int i = 0, r = 0; i < items_.size(); ++i)
+    for (unsigned int i = 0, r = 0, e = 0; i < items_.size(); ++i)
       if (mode[i] == 3)
         {
           const double *s = &ratios[4 * r++];
           out[i]          = s[3] > 0 ? std::sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]) / s[3] : 0.;
+        }
+      else if (mode[i] == 4)
+        {
+          const double *s = &l2[2 * e++];
+          out[i]          = s[1] > 0 ? std::sqrt(s[0] / s[1]) : 0.;
         }
       else
         out[i] = mode[i] == 0 ? sums[i] : mode[i] == 1 ? maxima[i] : -maxima[i];

@@ -121,7 +121,7 @@ namespace shard::particles
             if (cell->face(f)->at_boundary())
               {
                 const auto         face = cell->face(f);
-                const Tensor<1, 3> n    = mesh::outward_area_vector(cell, f);
+                const auto         n    = mesh::nodal_area_vectors(cell, f);
                 bool interpolating = false;
                 for (const auto &[b, id] : interpolating_faces)
                   interpolating |= b == body_name && (id < 0 || id == static_cast<int>(face->boundary_id()));
@@ -129,7 +129,7 @@ namespace shard::particles
                   {
                     const unsigned int j = pt.global_to_local(face->vertex_dof_index(v, 0));
                     for (unsigned int c = 0; c < 3; ++c)
-                      area.local_element(j + c) += n[c] / 4;
+                      area.local_element(j + c) += n[v][c];
                     if (interpolating)
                       flag.local_element(j) = 1;
                   }
@@ -260,5 +260,14 @@ namespace shard::particles
                     << " or fewer than 4 neighbours) and use Shepard functions (constant consistency only)" << text
                     << "\n";
       }
+  }
+
+  std::size_t
+  ParticleSet::memory_consumption() const
+  {
+    const auto bytes = [](const auto &v) { return v.capacity() * sizeof(v[0]); };
+    return sizeof(*this) - sizeof(stencils_) + stencils_.memory_consumption() + particle_body_.capacity() / 8 +
+           bytes(local_dof_) + bytes(volume_) + bytes(area_) + bytes(spacing_) + bytes(position_) + bytes(body_) +
+           bytes(global_id_);
   }
 } // namespace shard::particles

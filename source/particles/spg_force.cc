@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iostream>
 #include <sstream>
 
 namespace shard::particles
@@ -33,6 +34,35 @@ namespace shard::particles
       for (unsigned int k = 0; k < 9; ++k)
         inv[k] /= det;
       return det;
+    }
+
+    /**
+     * Smallest principal stretch of F: the square root of the smallest eigenvalue of C = F^T F
+     * (closed form for symmetric 3x3 matrices). It scales the particle spacing for the stable
+     * step: under isochoric crushing J^(1/3) stays near 1 while the spacing along the crushing
+     * direction shrinks.
+     */
+    double
+    smallest_stretch(const double *F)
+    {
+      double C[3][3];
+      for (unsigned int a = 0; a < 3; ++a)
+        for (unsigned int b = 0; b < 3; ++b)
+          C[a][b] = F[a] * F[b] + F[3 + a] * F[3 + b] + F[6 + a] * F[6 + b];
+      const double p1 = C[0][1] * C[0][1] + C[0][2] * C[0][2] + C[1][2] * C[1][2];
+      const double q  = (C[0][0] + C[1][1] + C[2][2]) / 3.;
+      const double a0 = C[0][0] - q, a1 = C[1][1] - q, a2 = C[2][2] - q;
+      const double p2 = a0 * a0 + a1 * a1 + a2 * a2 + 2 * p1;
+      if (p2 <= 1e-30 * q * q)
+        return std::sqrt(std::max(q, 0.));
+      const double p   = std::sqrt(p2 / 6.);
+      const double det = a0 * (a1 * a2 - C[1][2] * C[1][2]) - C[0][1] * (C[0][1] * a2 - C[1][2] * C[0][2]) +
+                         C[0][2] * (C[0][1] * C[1][2] - a1 * C[0][2]);
+      const double r   = std::clamp(det / (2 * p * p * p), -1., 1.);
+      const double phi = std::acos(r) / 3.;
+      // Eigenvalues q + 2 p cos(phi + 2 pi k / 3); the smallest is k = 1.
+      const double smallest = q + 2 * p * std::cos(phi + 2. * M_PI / 3.);
+      return std::sqrt(std::max(smallest, 0.));
     }
   } // namespace
 
@@ -67,11 +97,14 @@ namespace shard::particles
                       Patterns::Double(0, 1));
     prm.add_parameter("bulk viscosity quadratic", bulk_q2_,
                       "Quadratic coefficient Q2 of the bulk viscosity. Unit: 1. Range: 0 to 4.", Patterns::Double(0, 4));
-    prm.add_parameter("gradient correction", options_.gradient_correction,
-                      "Variationally consistent (Petrov-Galerkin) correction of the test-function gradients, so "
-                      "that nodal integration meets the integration constraint and passes the Galerkin patch test "
-                      "to round-off. Off by default: it makes the stiffness non-symmetric; on free surfaces the "
-                      "spectrum becomes complex and a free vibration grows (doc/theory/spg_stabilization.md).");
+    prm.add_parameter("gradient correction", correction_text_,
+                      "Correction of the nodal gradients so that nodal integration meets the integration "
+                      "constraint and passes the Galerkin patch test (doc/theory/spg_stabilization.md). consistent "
+                      "(default): the smallest symmetric change of the gradients that keeps linear exactness, from "
+                      "one conjugate-gradient solve at set-up. petrov-galerkin: corrected test functions only "
+                      "(non-symmetric stiffness; on free surfaces the spectrum becomes complex and a free vibration "
+                      "grows). none: the seed form, for comparison.",
+                      Patterns::Selection("consistent|petrov-galerkin|none"));
     prm.leave_subsection();
     return true;
   }
@@ -95,6 +128,9 @@ namespace shard::particles
     options_.stabilization = stabilization_text_ == "filter" ? Stabilization::filter :
                              stabilization_text_ == "none"   ? Stabilization::none :
                                                                Stabilization::residual;
+    options_.correction    = correction_text_ == "none"            ? Correction::none :
+                             correction_text_ == "petrov-galerkin" ? Correction::petrov_galerkin :
+                                                                     Correction::consistent;
     if (!active_)
       return;
     const auto        &st = particles.stencils();
@@ -148,7 +184,7 @@ namespace shard::particles
     Fnew_.assign(9 * n, 0.);
     VP_.assign(9 * n, 0.);
 
-    if (options_.gradient_correction)
+    if (options_.correction == Correction::petrov_galerkin)
       {
         // Integration-constraint terms summed over ranks, xi_K = (b_K - c_K) / w_K.
         std::vector<double> c(3 * st.n_k), b(3 * st.n_k), w(st.n_k), volume(n);
@@ -183,6 +219,73 @@ namespace shard::particles
             xi[3 * k + i] = cv.local_element(particles.local_dof(k) + i);
         op_.set_gradient_correction(std::move(xi));
       }
+    if (options_.correction == Correction::consistent)
+      prepare_consistent_correction();
+  }
+
+  void
+  SpgForce::prepare_consistent_correction()
+  {
+    const auto        &st = particles_->stencils();
+    const auto        &X  = discretization_->reference_positions();
+    std::vector<Point3> position(st.n_j);
+    for (unsigned int j = 0; j < st.n_j; ++j)
+      for (unsigned int c = 0; c < 3; ++c)
+        position[j][c] = X.local_element(particles_->local_dof(j) + c);
+    std::vector<double>       volume(st.n_i);
+    std::vector<unsigned int> body(st.n_i);
+    unsigned int              n_bodies = discretization_->bodies().size();
+    for (unsigned int i = 0; i < st.n_i; ++i)
+      {
+        volume[i] = particles_->volume(i);
+        body[i]   = particles_->body(i);
+      }
+    const ConsistentCorrection correction(st, position, volume.data());
+
+    // Arrays over the rows J (3 per particle) move through one distributed vector.
+    mesh::Vector work;
+    discretization_->initialize_vector(work);
+    const auto to_vector = [&](const std::vector<double> &a, const unsigned int n) {
+      work = 0.;
+      for (unsigned int j = 0; j < n; ++j)
+        for (unsigned int c = 0; c < 3; ++c)
+          work.local_element(particles_->local_dof(j) + c) = a[3 * j + c];
+    };
+    const auto from_vector = [&](std::vector<double> &a) {
+      for (unsigned int j = 0; j < st.n_j; ++j)
+        for (unsigned int c = 0; c < 3; ++c)
+          a[3 * j + c] = work.local_element(particles_->local_dof(j) + c);
+    };
+    CorrectionExchange exchange;
+    exchange.assemble = [&](std::vector<double> &a) {
+      to_vector(a, st.n_j);
+      work.compress(VectorOperation::add);
+      work.update_ghost_values();
+      from_vector(a);
+    };
+    exchange.distribute = [&](std::vector<double> &a) {
+      to_vector(a, st.n_i);
+      work.update_ghost_values();
+      from_vector(a);
+    };
+    const MPI_Comm comm = discretization_->communicator();
+    exchange.sum        = [comm](std::vector<double> &a) {
+      const std::vector<double> local(a);
+      Utilities::MPI::sum(local, comm, a);
+    };
+    std::vector<double> lambda;
+    const auto          solve = solve_consistent_correction(correction, particles_->area_vectors().data(), position,
+                                                   body, n_bodies, exchange, lambda, 1e-10);
+    correction_solve_ = solve;
+    if (solve.converged && Utilities::MPI::this_mpi_process(comm) == 0)
+      std::cerr << "shard: particles: consistent gradient correction: " << solve.iterations
+                << " conjugate-gradient iterations, defect " << solve.initial_defect << " -> " << solve.final_defect
+                << " m^2\n";
+    if (!solve.converged && Utilities::MPI::this_mpi_process(comm) == 0)
+      std::cerr << "shard: warning: the consistent gradient correction did not converge (" << solve.iterations
+                << " iterations, defect " << solve.initial_defect << " -> " << solve.final_defect
+                << "); the Galerkin patch test holds only to that level.\n";
+    op_.replace_gradients(correction.corrected_gradients(lambda.data()));
   }
 
   void
@@ -199,6 +302,9 @@ namespace shard::particles
     double dt = 1e300;
     for (unsigned int i = 0; i < n_owned(); ++i)
       dt = std::min(dt, length_[i] / groups_[group_of_[i]].material->initial_wave_speed());
+    // The linear bulk viscosity lowers the step from the first force evaluation on (see
+    // add_internal_forces); start with that step, so that it does not change at step 1.
+    dt /= std::sqrt(1 + bulk_q1_ * bulk_q1_) + bulk_q1_;
     return Utilities::MPI::min(dt, discretization_->communicator());
   }
 
@@ -358,9 +464,11 @@ namespace shard::particles
               q_[i] = q;
               result.internal_energy += work;
               // The bulk viscosity lowers the stable step (LS-DYNA's form of the correction).
-              const double qratio = bulk_q1_ - (trd < 0 && dt > 0 ? bulk_q2_ * length[k] * trd / dt / c[k] : 0.);
+              // Spacing for the step: the reference spacing times the smallest principal stretch.
+              const double spacing = length_[i] * smallest_stretch(&Fnew_[9 * i]);
+              const double qratio  = bulk_q1_ - (trd < 0 && dt > 0 ? bulk_q2_ * spacing * trd / dt / c[k] : 0.);
               result.stable_dt =
-                std::min(result.stable_dt, length[k] / (c[k] * (std::sqrt(1 + qratio * qratio) + qratio)));
+                std::min(result.stable_dt, spacing / (c[k] * (std::sqrt(1 + qratio * qratio) + qratio)));
               // V P = V J (sigma - q I) F^-T.
               const double *Fi = &F_inv[9 * k];
               const double s[3][3] = {
@@ -394,5 +502,21 @@ namespace shard::particles
     for (unsigned int i = 0; i < n_owned(); ++i)
       for (unsigned int c = 0; c < 3; ++c)
         out.local_element(particles_->local_dof(i) + c) = u_[3 * i + c];
+  }
+
+  std::size_t
+  SpgForce::memory_consumption() const
+  {
+    const auto bytes = [](const auto &v) { return v.capacity() * sizeof(v[0]); };
+    std::size_t b = sizeof(*this) - sizeof(op_) + op_.memory_consumption() + bytes(group_of_) + bytes(F_) +
+                    bytes(stress_) + bytes(q_) + bytes(density_) + bytes(length_) + bytes(dk_) + bytes(u_) +
+                    bytes(fk_) + bytes(Fnew_) + bytes(VP_) + groups_.capacity() * sizeof(Group);
+    for (const auto &g : groups_)
+      {
+        b += bytes(g.state) + g.slot_names.capacity() * sizeof(std::string);
+        for (const auto &n : g.slot_names)
+          b += n.capacity() > 15 ? n.capacity() + 1 : 0; // heap part beyond the small-string buffer
+      }
+    return b;
   }
 } // namespace shard::particles

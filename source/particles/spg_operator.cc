@@ -3,6 +3,7 @@
 #include <shard/particles/spg_operator.h>
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -115,8 +116,11 @@ namespace shard::particles
       throw std::invalid_argument("SpgOperator: one residual weight per owned particle expected");
     lambda_ = lambda;
     xi_.clear();
-    const CsrView g = view(stencils.g, true);
-    const CsrView a = view(stencils.a, false);
+    g_values_.clear();
+    g_view_ = view(stencils.g, true);
+    a_view_ = view(stencils.a, false);
+    const CsrView g = g_view_;
+    const CsrView a = a_view_;
     smoothing_.reinit(a, g, n_k_);
     if (options_.smoothing == Smoothing::two_level)
       kernel_.reinit(a, g, n_k_);
@@ -226,6 +230,20 @@ namespace shard::particles
   }
 
   void
+  SpgOperator::replace_gradients(std::vector<double> gradients)
+  {
+    if (gradients.size() != 3 * std::size_t(g_view_.offsets[g_view_.n_rows]))
+      throw std::invalid_argument("SpgOperator: one gradient per stencil entry of G expected");
+    g_values_        = std::move(gradients);
+    CsrView g        = g_view_;
+    g.values         = g_values_.data();
+    const CsrView &a = options_.smoothing == Smoothing::two_level ?
+                         a_view_ :
+                         CsrView{n_j_, identity_offsets_.data(), identity_columns_.data(), identity_values_.data(), 1};
+    kernel_.reinit(a, g, n_k_);
+  }
+
+  void
   SpgOperator::smooth_owned(const double *in, double *out) const
   {
     const CsrView &a = smoothing_.interpolation();
@@ -238,5 +256,373 @@ namespace shard::particles
         for (unsigned int c = 0; c < 3; ++c)
           out[3 * i + c] = s[c];
       }
+  }
+
+  namespace
+  {
+    /// Allocated bytes of a std::vector (its capacity).
+    template <typename T>
+    std::size_t
+    vector_bytes(const std::vector<T> &v)
+    {
+      return v.capacity() * sizeof(T);
+    }
+
+    /// Allocated bytes of the arrays of a Stencil.
+    std::size_t
+    stencil_bytes(const Stencil &s)
+    {
+      return vector_bytes(s.row_offsets) + vector_bytes(s.columns) + vector_bytes(s.psi) + vector_bytes(s.grad) +
+             vector_bytes(s.fallback) + vector_bytes(s.rcond);
+    }
+
+    /// Bytes of the transposed index and scatter scratch SpgKernel::reinit() allocates for one
+    /// stencil view with @p n_columns columns (offsets, rows and entries; see spg_kernel.cc).
+    std::size_t
+    transposed_bytes(const CsrView &m, const unsigned int n_columns)
+    {
+      if (m.offsets == nullptr) // not initialized
+        return 0;
+      return (std::size_t(n_columns) + 1 + 2 * std::size_t(m.offsets[m.n_rows])) * sizeof(unsigned int);
+    }
+
+    std::size_t
+    kernel_bytes(const SpgKernel &k)
+    {
+      const CsrView &a = k.interpolation();
+      if (a.offsets == nullptr)
+        return 0;
+      return transposed_bytes(a, k.n_coefficients()) + transposed_bytes(k.smoothing_gradient(), a.n_rows) +
+             3 * std::size_t(a.n_rows) * sizeof(double);
+    }
+  } // namespace
+
+  std::size_t
+  LocalStencils::memory_consumption() const
+  {
+    return sizeof(*this) + stencil_bytes(a) + stencil_bytes(g) + vector_bytes(cloud_index) + vector_bytes(fallback);
+  }
+
+  std::size_t
+  SpgOperator::memory_consumption() const
+  {
+    return sizeof(*this) + vector_bytes(identity_offsets_) + vector_bytes(identity_columns_) +
+           vector_bytes(identity_values_) + kernel_bytes(kernel_) + kernel_bytes(smoothing_) + vector_bytes(lambda_) +
+           vector_bytes(xi_) + vector_bytes(g_values_) + vector_bytes(scratch_j_) + vector_bytes(scratch_j9_) +
+           vector_bytes(scratch_k_) + vector_bytes(scratch_k9_);
+  }
+
+  namespace
+  {
+    /// Inverse of a symmetric positive definite 4x4 matrix (Gauss-Jordan with partial pivoting).
+    bool
+    invert4(const double *m, double *inv)
+    {
+      double a[4][8];
+      for (unsigned int r = 0; r < 4; ++r)
+        for (unsigned int c = 0; c < 8; ++c)
+          a[r][c] = c < 4 ? m[4 * r + c] : (c - 4 == r ? 1. : 0.);
+      double scale = 0;
+      for (unsigned int r = 0; r < 4; ++r)
+        scale = std::max(scale, std::abs(a[r][r]));
+      for (unsigned int c = 0; c < 4; ++c)
+        {
+          unsigned int p = c;
+          for (unsigned int r = c + 1; r < 4; ++r)
+            if (std::abs(a[r][c]) > std::abs(a[p][c]))
+              p = r;
+          if (!(std::abs(a[p][c]) > 1e-13 * scale))
+            return false;
+          for (unsigned int k = 0; k < 8; ++k)
+            std::swap(a[c][k], a[p][k]);
+          const double d = 1. / a[c][c];
+          for (unsigned int k = 0; k < 8; ++k)
+            a[c][k] *= d;
+          for (unsigned int r = 0; r < 4; ++r)
+            if (r != c)
+              {
+                const double f = a[r][c];
+                for (unsigned int k = 0; k < 8; ++k)
+                  a[r][k] -= f * a[c][k];
+              }
+        }
+      for (unsigned int r = 0; r < 4; ++r)
+        for (unsigned int c = 0; c < 4; ++c)
+          inv[4 * r + c] = a[r][c + 4];
+      return true;
+    }
+  } // namespace
+
+  ConsistentCorrection::ConsistentCorrection(const LocalStencils &stencils, const std::vector<Point3> &position_j,
+                                             const double *volume)
+    : st_(stencils)
+    , n_i_(stencils.n_i)
+    , n_j_(stencils.n_j)
+    , volume_(volume, volume + stencils.n_i)
+  {
+    if (position_j.size() != n_j_)
+      throw std::invalid_argument("ConsistentCorrection: one position per particle J expected");
+    const Stencil &g = st_.g;
+    basis_.resize(4 * g.columns.size());
+    inverse_moment_.resize(16 * n_i_);
+    for (unsigned int i = 0; i < n_i_; ++i)
+      {
+        const Point3 &xi = position_j[i];
+        double        l  = 0;
+        for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+          for (unsigned int c = 0; c < 3; ++c)
+            l = std::max(l, std::abs(position_j[g.columns[e]][c] - xi[c]));
+        l = l > 0 ? l : 1.;
+        double m[16] = {};
+        for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+          {
+            double *p = &basis_[4 * e];
+            p[0]      = 1;
+            for (unsigned int c = 0; c < 3; ++c)
+              p[c + 1] = (position_j[g.columns[e]][c] - xi[c]) / l;
+            for (unsigned int r = 0; r < 4; ++r)
+              for (unsigned int c = 0; c < 4; ++c)
+                m[4 * r + c] += p[r] * p[c];
+          }
+        // A stencil that does not span 3-D (a Shepard fallback row) is left uncorrected.
+        if (!invert4(m, &inverse_moment_[16 * i]))
+          std::fill(&inverse_moment_[16 * i], &inverse_moment_[16 * i] + 16, std::nan(""));
+      }
+  }
+
+  void
+  ConsistentCorrection::row_fit(const unsigned int i, const double *lambda, double *mu) const
+  {
+    const Stencil &g = st_.g;
+    double         s[12] = {};
+    for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+      {
+        const double *p = &basis_[4 * e];
+        const double *l = &lambda[3 * g.columns[e]];
+        for (unsigned int r = 0; r < 4; ++r)
+          for (unsigned int c = 0; c < 3; ++c)
+            s[3 * r + c] += p[r] * l[c];
+      }
+    const double *inv = &inverse_moment_[16 * i];
+    for (unsigned int r = 0; r < 4; ++r)
+      for (unsigned int c = 0; c < 3; ++c)
+        mu[3 * r + c] = inv[4 * r] * s[c] + inv[4 * r + 1] * s[3 + c] + inv[4 * r + 2] * s[6 + c] +
+                        inv[4 * r + 3] * s[9 + c];
+  }
+
+  void
+  ConsistentCorrection::defect(const double *area, double *r) const
+  {
+    const Stencil &g = st_.g;
+    std::fill(r, r + 3 * n_j_, 0.);
+    for (unsigned int i = 0; i < n_i_; ++i)
+      {
+        for (unsigned int c = 0; c < 3; ++c)
+          r[3 * i + c] += area[3 * i + c];
+        for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+          for (unsigned int c = 0; c < 3; ++c)
+            r[3 * g.columns[e] + c] -= volume_[i] * g.grad[3 * e + c];
+      }
+  }
+
+  void
+  ConsistentCorrection::apply(const double *lambda, double *y) const
+  {
+    const Stencil &g = st_.g;
+    std::fill(y, y + 3 * n_j_, 0.);
+    double mu[12];
+    for (unsigned int i = 0; i < n_i_; ++i)
+      {
+        if (std::isnan(inverse_moment_[16 * i]))
+          continue;
+        row_fit(i, lambda, mu);
+        const double w = volume_[i] * volume_[i];
+        for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+          {
+            const double *p = &basis_[4 * e];
+            const double *l = &lambda[3 * g.columns[e]];
+            for (unsigned int c = 0; c < 3; ++c)
+              y[3 * g.columns[e] + c] +=
+                w * (l[c] - p[0] * mu[c] - p[1] * mu[3 + c] - p[2] * mu[6 + c] - p[3] * mu[9 + c]);
+          }
+      }
+  }
+
+  void
+  ConsistentCorrection::diagonal(double *diag) const
+  {
+    const Stencil &g = st_.g;
+    std::fill(diag, diag + 3 * n_j_, 0.);
+    for (unsigned int i = 0; i < n_i_; ++i)
+      {
+        if (std::isnan(inverse_moment_[16 * i]))
+          continue;
+        const double *inv = &inverse_moment_[16 * i];
+        const double  w   = volume_[i] * volume_[i];
+        for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+          {
+            const double *p  = &basis_[4 * e];
+            double        pp = 0; // (P_I)_JJ = p_J^T M^-1 p_J
+            for (unsigned int r = 0; r < 4; ++r)
+              for (unsigned int c = 0; c < 4; ++c)
+                pp += p[r] * inv[4 * r + c] * p[c];
+            for (unsigned int c = 0; c < 3; ++c)
+              diag[3 * g.columns[e] + c] += w * (1 - pp);
+          }
+      }
+  }
+
+  std::vector<double>
+  ConsistentCorrection::corrected_gradients(const double *lambda) const
+  {
+    const Stencil      &g = st_.g;
+    std::vector<double> out(g.grad.begin(), g.grad.begin() + 3 * std::size_t(g.row_offsets[n_i_]));
+    double              mu[12];
+    for (unsigned int i = 0; i < n_i_; ++i)
+      {
+        if (std::isnan(inverse_moment_[16 * i]))
+          continue;
+        row_fit(i, lambda, mu);
+        for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+          {
+            const double *p = &basis_[4 * e];
+            const double *l = &lambda[3 * g.columns[e]];
+            for (unsigned int c = 0; c < 3; ++c)
+              out[3 * e + c] +=
+                volume_[i] * (l[c] - p[0] * mu[c] - p[1] * mu[3 + c] - p[2] * mu[6 + c] - p[3] * mu[9 + c]);
+          }
+      }
+    return out;
+  }
+
+  CorrectionSolve
+  solve_consistent_correction(const ConsistentCorrection &correction, const double *area,
+                              const std::vector<Point3> &position_j, const std::vector<unsigned int> &component,
+                              const unsigned int n_components, const CorrectionExchange &exchange,
+                              std::vector<double> &lambda, const double tolerance, const unsigned int max_iterations)
+  {
+    const unsigned int n_j = correction.n_j(), n_owned = component.size();
+    std::vector<double> r(3 * n_j), z(3 * n_j), p(3 * n_j), q(3 * n_j), diag(3 * n_j);
+    lambda.assign(3 * n_j, 0.);
+    correction.defect(area, r.data());
+    exchange.assemble(r);
+    correction.diagonal(diag.data());
+    exchange.assemble(diag);
+    const auto dot = [&](const std::vector<double> &a, const std::vector<double> &b) {
+      std::vector<double> s(1, 0.);
+      for (unsigned int k = 0; k < 3 * n_owned; ++k)
+        s[0] += a[k] * b[k];
+      exchange.sum(s);
+      return s[0];
+    };
+    CorrectionSolve out;
+    const double    r_norm = std::sqrt(dot(r, r));
+
+    // Remove the component of r along the null space of S (fields linear in X), per component:
+    // r <- r - p (p^T p)^-1 p^T r with p = (1, X - X_c), X_c a fixed point of each component.
+    std::vector<double> sums(n_components * (16 + 12 + 3), 0.);
+    std::vector<Point3> origin(n_components, Point3{{0, 0, 0}});
+    {
+      std::vector<double> centroid(4 * n_components, 0.);
+      for (unsigned int i = 0; i < n_owned; ++i)
+        {
+          centroid[4 * component[i]] += 1;
+          for (unsigned int c = 0; c < 3; ++c)
+            centroid[4 * component[i] + 1 + c] += position_j[i][c];
+        }
+      exchange.sum(centroid);
+      for (unsigned int b = 0; b < n_components; ++b)
+        for (unsigned int c = 0; c < 3; ++c)
+          origin[b][c] = centroid[4 * b] > 0 ? centroid[4 * b + 1 + c] / centroid[4 * b] : 0.;
+    }
+    const auto basis = [&](const unsigned int i, double *pv) {
+      pv[0] = 1;
+      for (unsigned int c = 0; c < 3; ++c)
+        pv[c + 1] = position_j[i][c] - origin[component[i]][c];
+    };
+    for (unsigned int i = 0; i < n_owned; ++i)
+      {
+        double *s = &sums[31 * component[i]];
+        double  pv[4];
+        basis(i, pv);
+        for (unsigned int a = 0; a < 4; ++a)
+          {
+            for (unsigned int b = 0; b < 4; ++b)
+              s[4 * a + b] += pv[a] * pv[b];
+            for (unsigned int c = 0; c < 3; ++c)
+              s[16 + 3 * a + c] += pv[a] * r[3 * i + c];
+          }
+      }
+    exchange.sum(sums);
+    std::vector<double> fit(12 * n_components, 0.);
+    for (unsigned int b = 0; b < n_components; ++b)
+      {
+        double inv[16];
+        if (!invert4(&sums[31 * b], inv))
+          continue;
+        for (unsigned int a = 0; a < 4; ++a)
+          for (unsigned int c = 0; c < 3; ++c)
+            for (unsigned int k = 0; k < 4; ++k)
+              fit[12 * b + 3 * a + c] += inv[4 * a + k] * sums[31 * b + 16 + 3 * k + c];
+      }
+    double removed = 0;
+    for (unsigned int i = 0; i < n_owned; ++i)
+      {
+        double pv[4];
+        basis(i, pv);
+        for (unsigned int c = 0; c < 3; ++c)
+          {
+            double v = 0;
+            for (unsigned int a = 0; a < 4; ++a)
+              v += pv[a] * fit[12 * component[i] + 3 * a + c];
+            r[3 * i + c] -= v;
+            removed += v * v;
+          }
+      }
+    {
+      std::vector<double> s(1, removed);
+      exchange.sum(s);
+      removed = s[0];
+    }
+    out.initial_defect = r_norm;
+    out.inconsistency  = r_norm > 0 ? std::sqrt(removed) / r_norm : 0.;
+
+    const auto precondition = [&]() {
+      for (unsigned int k = 0; k < 3 * n_owned; ++k)
+        z[k] = diag[k] > 0 ? r[k] / diag[k] : 0.;
+    };
+    precondition();
+    p = z;
+    exchange.distribute(p);
+    double       rz     = dot(r, z);
+    double       res    = std::sqrt(dot(r, r));
+    const double target = tolerance * std::max(r_norm, 1e-300);
+    while (res > target && out.iterations < max_iterations)
+      {
+        correction.apply(p.data(), q.data());
+        exchange.assemble(q);
+        const double pq = dot(p, q);
+        if (!(pq > 0))
+          break;
+        const double alpha = rz / pq;
+        for (unsigned int k = 0; k < 3 * n_owned; ++k)
+          {
+            lambda[k] += alpha * p[k];
+            r[k] -= alpha * q[k];
+          }
+        precondition();
+        const double rz_new = dot(r, z);
+        const double beta   = rz_new / rz;
+        rz                  = rz_new;
+        for (unsigned int k = 0; k < 3 * n_owned; ++k)
+          p[k] = z[k] + beta * p[k];
+        exchange.distribute(p);
+        res = std::sqrt(dot(r, r));
+        ++out.iterations;
+      }
+    exchange.distribute(lambda);
+    out.final_defect = res;
+    out.converged    = res <= target;
+    return out;
   }
 } // namespace shard::particles

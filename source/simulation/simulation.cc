@@ -12,6 +12,8 @@
 #include <iostream>
 #include <sstream>
 
+#include <sys/resource.h>
+
 namespace shard
 {
   using namespace dealii;
@@ -375,7 +377,7 @@ namespace shard
       reference > 0 ? (kinetic + internal - initial_energy_ - external - boundary - filter) / reference : 0.;
     max_energy_error_ = std::max(max_energy_error_, std::abs(energy_error_));
 
-    const auto q = quantities_.evaluate(physical_displacement(), v_now_);
+    const auto q = quantities_.evaluate(physical_displacement(), v_now_, mass_, t_);
     if (q_final_.empty())
       {
         q_min_ = q;
@@ -436,6 +438,16 @@ namespace shard
     std::array<double, 11> max_time;
     Utilities::MPI::max(ArrayView<const double>(phase_time_.data(), 11), comm_,
                         ArrayView<double>(max_time.data(), 11));
+    // Memory: solver-owned particle data and the distributed vectors of the time loop (summed
+    // over ranks), peak resident set size (largest over ranks; ru_maxrss is in KiB on Linux).
+    double memory[2] = {particles_.active() ? double(particles_.memory_consumption() + spg_.memory_consumption()) : 0.,
+                        0.};
+    for (const auto *vec : {&d_, &v_, &v_now_, &f_, &f_ext_, &mass_, &d_phys_})
+      memory[1] += vec->memory_consumption();
+    Utilities::MPI::sum(ArrayView<const double>(memory, 2), comm_, ArrayView<double>(memory, 2));
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    const double peak_rss = Utilities::MPI::max(1024. * usage.ru_maxrss, comm_);
     if (Utilities::MPI::this_mpi_process(comm_) != 0)
       return;
     const double       n_elements = discretization_.n_elements();
@@ -453,6 +465,7 @@ namespace shard
     j << "  \"wall_time_s\": " << number(wall_time + max_time[0]) << ",\n";
     j << "  \"n_elements\": " << discretization_.n_elements() << ",\n";
     j << "  \"n_particles\": " << particles_.n_global() << ",\n";
+    j << "  \"correction_iterations\": " << spg_.correction_solve().iterations << ",\n";
     j << "  \"n_mpi_ranks\": " << Utilities::MPI::n_mpi_processes(comm_) << ",\n";
     j << "  \"energy_error\": " << number(energy_error_) << ",\n";
     j << "  \"max_abs_energy_error\": " << number(max_energy_error_) << ",\n";
@@ -463,6 +476,12 @@ namespace shard
     j << "  \"particle_steps_per_s\": " << number(max_time[6] > 0 ? n_particles * step_ / max_time[6] : 0) << ",\n";
     j << "  \"us_per_particle_step\": "
       << number(step_ > 0 && n_particles > 0 ? 1e6 * max_time[6] / (n_particles * step_) : 0) << ",\n";
+    j << "  \"particle_bytes\": " << number(memory[0]) << ",\n";
+    j << "  \"bytes_per_particle\": " << number(n_particles > 0 ? memory[0] / n_particles : 0) << ",\n";
+    j << "  \"n_dofs\": " << d_.size() << ",\n";
+    j << "  \"vector_bytes\": " << number(memory[1]) << ",\n";
+    j << "  \"vector_bytes_per_dof\": " << number(d_.size() > 0 ? memory[1] / d_.size() : 0) << ",\n";
+    j << "  \"peak_rss_bytes\": " << number(peak_rss) << ",\n";
     j << "  \"phase_time_s\": {";
     for (unsigned int p = 0; p < 11; ++p)
       j << (p ? ", " : "") << "\"" << phase_names[p] << "\": " << number(max_time[p]);

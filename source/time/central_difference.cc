@@ -21,6 +21,13 @@ namespace shard::time
     prm.add_parameter("fixed time step", fixed_dt_,
                       "A fixed step instead of the stable one (tests); 0 uses the stable step. Unit: s. Range: >= 0.",
                       Patterns::Double(0));
+    prm.add_parameter("step size band", step_band_,
+                      "Hysteresis of the step: the step is held while it lies between (1 - b) and 1 times the "
+                      "safety factor times the stable step, and reset to that bound when it leaves the band, so a "
+                      "bound that oscillates settles the step on its minimum. A step that follows every small change "
+                      "of the bound (b = 0) pumps energy into a vibrating body (the central difference with varying "
+                      "steps is not symplectic; doc/decisions/0005-step-size-band.md). Unit: 1. Range: 0 to 0.2.",
+                      Patterns::Double(0, 0.2));
     prm.add_parameter("max steps", max_steps_, "Stop after this many steps; 0: no limit. Unit: 1.",
                       Patterns::Integer(0));
     prm.add_parameter("energy error limit", energy_error_limit_,
@@ -39,14 +46,19 @@ namespace shard::time
       source.fail(p + "end time", std::to_string(end_time_), "must be > 0. Unit: s.");
     if (!(safety_factor_ > 0 && safety_factor_ <= 1))
       source.fail(p + "safety factor", std::to_string(safety_factor_), "must be in (0, 1]. Unit: 1.");
+    if (!(step_band_ >= 0 && step_band_ <= 0.2))
+      source.fail(p + "step size band", std::to_string(step_band_), "must be in [0, 0.2]. Unit: 1.");
     if (!(energy_error_limit_ > 0))
       source.fail(p + "energy error limit", std::to_string(energy_error_limit_), "must be > 0. Unit: 1.");
   }
 
   double
-  CentralDifference::next_dt(const double stable_dt, const double t) const
+  CentralDifference::next_dt(const double stable_dt, const double t)
   {
-    const double dt        = fixed_dt_ > 0 ? fixed_dt_ : safety_factor_ * stable_dt;
+    const double bound = safety_factor_ * stable_dt;
+    if (!(held_dt_ <= bound && held_dt_ >= (1 - step_band_) * bound))
+      held_dt_ = bound;
+    const double dt        = fixed_dt_ > 0 ? fixed_dt_ : held_dt_;
     const double remaining = end_time_ - t;
     // Avoid a sliver of a last step: stretch or split the remainder evenly.
     if (remaining <= dt * (1 + 1e-9))

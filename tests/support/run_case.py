@@ -141,6 +141,11 @@ def check_case(args, outdir, failures):
                 value = min(ys)
             elif kind == "final":
                 value = ys[-1]
+            elif kind == "growth":
+                # Largest |y| after "from" over the largest |y| up to "to" (no growth: <= 1).
+                late = max(abs(y) for t, y in zip(ts, ys) if t >= c["from"])
+                early = max(abs(y) for t, y in zip(ts, ys) if t <= c["to"])
+                value = late / early
             else:
                 raise SystemExit(f"unknown check type {kind}")
             check_value(failures, case, f"{c['name']} ({c.get('source', '')})", value, c["expected"],

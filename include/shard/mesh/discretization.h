@@ -14,6 +14,7 @@
 #include <deal.II/fe/fe_system.h>
 #include <deal.II/lac/la_parallel_vector.h>
 
+#include <array>
 #include <map>
 #include <memory>
 #include <string>
@@ -68,6 +69,15 @@ namespace shard::mesh
    */
   dealii::Tensor<1, 3>
   outward_area_vector(const dealii::DoFHandler<3>::active_cell_iterator &cell, unsigned int f);
+
+  /**
+   * @brief Nodal outward area vectors of face @p f of @p cell: int N_v n dA for each face vertex
+   * v (deal.II face vertex order), N_v the bilinear face shape functions; 2x2 Gauss, exact for
+   * bilinear faces. Unlike a quarter of outward_area_vector(), they integrate linear functions
+   * exactly on any bilinear face: sum_v a_v (x) X_v = int x (x) n dA.
+   */
+  std::array<dealii::Tensor<1, 3>, 4>
+  nodal_area_vectors(const dealii::DoFHandler<3>::active_cell_iterator &cell, unsigned int f);
 
   /**
    * @brief Owns the bodies, the distributed triangulation, the Q1 vector element and the DoFs.

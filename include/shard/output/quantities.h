@@ -2,7 +2,8 @@
 /**
  * @file quantities.h
  * @brief Scene quantities of interest (subsection `K - Quantities`): reaction forces,
- *        extents, point stresses and velocities, maxima of history variables.
+ *        extents, point stresses and velocities, maxima of history variables, odd-even
+ *        indicator, L2 error against an exact displacement.
  * @ingroup output
  */
 #pragma once
@@ -13,6 +14,9 @@
 #include <shard/particles/spg_force.h>
 #include <shard/mesh/discretization.h>
 
+#include <deal.II/base/function_parser.h>
+
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -31,6 +35,11 @@ namespace shard::output
    *   reference point (Pa; p is the pressure, compression positive).
    * - `velocity <x> <y> <z> <x|y|z>`: velocity of the node nearest the reference point (m/s).
    * - `max_plastic_strain <body|all>`: largest effective plastic strain (1).
+   * - `odd_even <particle body>`: |sum_I s_I u_I| / sum_I |u_I|, s_I = (-1)^(i+j+k) (1).
+   * - `l2_error <body|all> <ux> <uy> <uz>`: mass-weighted RMS distance of the displacement from
+   *   an exact one, sqrt(sum_I m_I |u_I - u(X_I, t)|^2 / sum_I m_I) over the nodes (particles) of
+   *   the body (m); m_I the lumped mass, u_I the physical displacement for particle bodies, the
+   *   three muparser expressions of x, y, z (reference coordinates) and t contain no spaces.
    */
   class Quantities : public base::ParameterOwner
   {
@@ -54,10 +63,12 @@ namespace shard::output
      * @brief Evaluates every quantity.
      * @param d displacement now (owned entries used)
      * @param v velocity at the same time (owned entries used)
+     * @param mass lumped mass (owned entries used; for `l2_error`)
+     * @param t time of @p d and @p v (s; for `l2_error`)
      * @note Collective.
      */
     std::vector<double>
-    evaluate(const mesh::Vector &d, const mesh::Vector &v) const;
+    evaluate(const mesh::Vector &d, const mesh::Vector &v, const mesh::Vector &mass, double t) const;
 
   private:
     struct Item
@@ -67,6 +78,7 @@ namespace shard::output
       int                      body = -1, component = 0, boundary_id = -1;
       std::vector<unsigned int> nodes;
       std::vector<double>       signs; // odd_even: (-1)^(i+j+k) per node
+      std::shared_ptr<dealii::FunctionParser<3>> exact; // l2_error: u(x, y, z, t)
       int                      element = -1; // local element index owning the point
       int                      particle = -1; // or the owned particle closest to it
       unsigned int             node    = 0;

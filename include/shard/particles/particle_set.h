@@ -146,6 +146,15 @@ namespace shard::particles
       return rk_;
     }
 
+    /**
+     * @brief Bytes this object keeps on this rank after prepare(): the local stencils
+     * (LocalStencils::memory_consumption()) and the per-particle arrays (local DOF, volume,
+     * area vector, spacing, position, body, global id; allocated capacities). The particle
+     * table gathered from all ranks during prepare() is freed at its end and not counted.
+     */
+    std::size_t
+    memory_consumption() const;
+
   private:
     std::string              body_names_text_;
     std::vector<std::string> body_names_;

@@ -137,6 +137,22 @@ namespace shard::particles
       return options_;
     }
 
+    /// Outcome of the consistent-correction solve at set-up (zero iterations when not used).
+    const CorrectionSolve &
+    correction_solve() const
+    {
+      return correction_solve_;
+    }
+
+    /**
+     * @brief Bytes of particle data this object owns on this rank: the state per owned
+     * particle (F, stress, bulk viscosity, density, length, material history), the gather and
+     * scratch arrays of the force evaluation and the SpgOperator (allocated capacities). The
+     * ParticleSet and its stencils are not counted (ParticleSet::memory_consumption()).
+     */
+    std::size_t
+    memory_consumption() const;
+
   private:
     struct Group
     {
@@ -150,12 +166,14 @@ namespace shard::particles
     double             bulk_q2_            = 1.5;
     std::string        smoothing_text_     = "two-level";
     std::string        stabilization_text_ = "residual";
+    std::string        correction_text_    = "consistent";
     FormulationOptions options_;
     bool               declared_ = false, active_ = false;
 
     const ParticleSet           *particles_ = nullptr;
     const mesh::Discretization  *discretization_ = nullptr;
     SpgOperator                  op_;
+    CorrectionSolve              correction_solve_;
     std::vector<Group>           groups_;
     std::vector<unsigned int>    group_of_;
     std::vector<double>          F_, stress_, q_, density_, length_;
@@ -163,6 +181,10 @@ namespace shard::particles
 
     void
     gather(const mesh::Vector &v, std::vector<double> &out) const;
+
+    /// Solves for the consistent gradient correction and hands G + C to the operator (collective).
+    void
+    prepare_consistent_correction();
 
     [[noreturn]] void
     fail(unsigned int i, unsigned int step, const std::string &what) const;

@@ -23,6 +23,7 @@
 #include <shard/particles/rk_shape.h>
 #include <shard/particles/spg_kernel.h>
 
+#include <functional>
 #include <vector>
 
 namespace shard::particles
@@ -47,6 +48,20 @@ namespace shard::particles
     residual
   };
 
+  /// Correction of the nodal gradients so that nodal integration meets the integration
+  /// constraint (Galerkin patch test; doc/theory/spg_stabilization.md).
+  enum class Correction
+  {
+    /// None: the seed form, for comparison.
+    none,
+    /// Petrov-Galerkin: test-function gradients grad phi_K + xi_K Psi_K (non-symmetric
+    /// stiffness with complex eigenvalues on free surfaces; grows in dynamics).
+    petrov_galerkin,
+    /// Consistent (default): the smallest symmetric change of the nodal gradients G that keeps
+    /// linear exactness and meets the constraint (ConsistentCorrection).
+    consistent
+  };
+
   /// Options of the formulation (subsection `F - Particle formulation`).
   struct FormulationOptions
   {
@@ -56,10 +71,8 @@ namespace shard::particles
     double residual_coefficient = 0.1;
     /// N of R1 (steps).
     unsigned int filter_interval = 15;
-    /// Petrov-Galerkin variationally consistent correction of the test-function gradients
-    /// (off by default: it makes the stiffness non-symmetric, with complex eigenvalues that
-    /// grow in dynamics; doc/theory/spg_stabilization.md).
-    bool gradient_correction = false;
+    /// Correction of the nodal gradients for the integration constraint.
+    Correction correction = Correction::consistent;
   };
 
   /// Particle data a stencil build needs, indexed by cloud position (sorted by global id).
@@ -90,6 +103,14 @@ namespace shard::particles
     unsigned int              n_i = 0, n_j = 0, n_k = 0;
     /// Owned rows whose moment matrix fell back to Shepard functions (cloud indices).
     std::vector<unsigned int> fallback;
+
+    /**
+     * @brief Bytes held by the stencils: the CSR arrays of A and G (offsets, columns, psi,
+     * grad, fallback flags, rcond; allocated capacities), the compact index and the fallback
+     * list, plus the struct itself.
+     */
+    std::size_t
+    memory_consumption() const;
   };
 
   /**
@@ -165,6 +186,14 @@ namespace shard::particles
     void
     set_gradient_correction(std::vector<double> xi);
 
+    /**
+     * @brief Replaces the nodal gradients G (3 per stencil entry of LocalStencils::g, same
+     * pattern) used by the kinematics and the force, e.g. by
+     * ConsistentCorrection::corrected_gradients().
+     */
+    void
+    replace_gradients(std::vector<double> gradients);
+
     /// Applies R1 to the owned rows: out_I = (A in)_I for I < n_i (3 per row).
     void
     smooth_owned(const double *in, double *out) const;
@@ -197,6 +226,17 @@ namespace shard::particles
       return n_k_;
     }
 
+    /**
+     * @brief Bytes held by the operator: residual weights, gradient corrections (xi and the
+     * replaced gradients), scratch and identity rows (allocated capacities), plus the transposed indices and scratch of its two
+     * SpgKernel objects. The kernels' arrays are counted from the stencil sizes (SpgKernel
+     * allocates n_columns + 1 offsets and two indices per entry for each of A and G, and 3
+     * doubles per row of A). The stencil values themselves belong to LocalStencils and are
+     * not counted here.
+     */
+    std::size_t
+    memory_consumption() const;
+
   private:
     FormulationOptions        options_;
     unsigned int              n_i_ = 0, n_j_ = 0, n_k_ = 0;
@@ -205,6 +245,111 @@ namespace shard::particles
     SpgKernel                 kernel_;     // A used for u (identity for DNI) and G
     SpgKernel                 smoothing_;  // RK A for the residual and the filter
     std::vector<double>       lambda_, xi_;
+    CsrView                   a_view_, g_view_;
+    std::vector<double>       g_values_; // replaced gradients (empty: those of the stencils)
     mutable std::vector<double> scratch_j_, scratch_j9_, scratch_k_, scratch_k9_;
   };
+
+  /**
+   * @brief The consistent gradient correction: the smallest change C of the nodal gradients
+   * (same stencils) such that
+   * - every row still differentiates linear fields exactly: sum_J C_IJ = 0 and
+   *   sum_J C_IJ (x) X_J = 0, so strain reproduction and rigid rotations are untouched;
+   * - nodal integration meets the integration constraint sum_I V_I (G + C)_IJ = a_J, with a_J
+   *   the outward area vector of particle J (zero inside the body).
+   *
+   * Used for both trial and test functions, it keeps the stiffness symmetric. Minimizing
+   * sum |C_IJ|^2 under these conditions gives C_IJ = V_I [(1 - P_I) lambda]_J, with P_I the
+   * Euclidean projection onto linear functions over row I's stencil and lambda (3 per particle,
+   * one per gradient direction) a solution of S lambda = r:
+   * S = sum_I V_I^2 E_I^T (1 - P_I) E_I (symmetric positive semi-definite; null space: the
+   * fields that are linear over every stencil), r_J = a_J - sum_I V_I G_IJ. Because nodal
+   * volumes and area vectors integrate linear functions exactly (sum_I V_I = V,
+   * sum_J a_J (x) X_J = V 1), r is orthogonal to that null space and the system is consistent.
+   * Derivation and evidence: doc/theory/spg_stabilization.md.
+   *
+   * Arrays over J hold 3 doubles per particle J of the local stencils (owned first); products
+   * over the owned rows are partial sums across ranks.
+   */
+  class ConsistentCorrection
+  {
+  public:
+    /**
+     * @param stencils the local stencils (must outlive this object)
+     * @param position_j reference positions of the n_j particles J
+     * @param volume V_I of the owned rows
+     */
+    ConsistentCorrection(const LocalStencils &stencils, const std::vector<Point3> &position_j, const double *volume);
+
+    /// Partial r_J = a_J - sum_I V_I G_IJ (a_J added for owned J only); @p area 3 per owned row.
+    void
+    defect(const double *area, double *r) const;
+
+    /// Partial y = S lambda (3 per J); @p lambda must hold values on every J.
+    void
+    apply(const double *lambda, double *y) const;
+
+    /// Partial diagonal of S, repeated 3 times per J.
+    void
+    diagonal(double *diag) const;
+
+    /// G + C for a solution @p lambda (values on every J), in the layout of LocalStencils::g.
+    std::vector<double>
+    corrected_gradients(const double *lambda) const;
+
+    /// Number of rows J.
+    unsigned int
+    n_j() const
+    {
+      return n_j_;
+    }
+
+  private:
+    const LocalStencils &st_;
+    unsigned int         n_i_, n_j_;
+    std::vector<double>  volume_;
+    /// Per stencil entry of G: the linear basis (1, (X_J - X_I) / l_I), 4 doubles.
+    std::vector<double> basis_;
+    /// Per owned row: the inverse moment matrix of the basis over the stencil, 16 doubles.
+    std::vector<double> inverse_moment_;
+
+    /// mu_I = M_I^-1 sum_J p_J lambda_J (4 x 3, row-major) for row @p i.
+    void
+    row_fit(unsigned int i, const double *lambda, double *mu) const;
+  };
+
+  /// How ranks combine the arrays over J during the correction solve (identity on one rank).
+  struct CorrectionExchange
+  {
+    /// Partial sums over the local J -> totals on owned J and the owners' totals on the others.
+    std::function<void(std::vector<double> &)> assemble;
+    /// Owned values -> the other J get their owners' values.
+    std::function<void(std::vector<double> &)> distribute;
+    /// Element-wise sum over ranks.
+    std::function<void(std::vector<double> &)> sum;
+  };
+
+  /// Outcome of the correction solve.
+  struct CorrectionSolve
+  {
+    unsigned int iterations = 0;
+    /// |r| before and |r - S lambda| after, Euclidean over all particles (m^2).
+    double initial_defect = 0, final_defect = 0;
+    /// Part of r outside the range of S that was removed, |r_removed| / |r|.
+    double inconsistency = 0;
+    bool   converged     = false;
+  };
+
+  /**
+   * @brief Solves S lambda = r by conjugate gradients with a Jacobi preconditioner, after
+   * removing from r its (round-off or mesh-distortion) component along linear fields, per
+   * @p component (e.g. body) of the owned particles.
+   * @param lambda on return, the solution on every J (3 per J)
+   * @param tolerance on |r - S lambda| / |r|
+   */
+  CorrectionSolve
+  solve_consistent_correction(const ConsistentCorrection &correction, const double *area,
+                              const std::vector<Point3> &position_j, const std::vector<unsigned int> &component,
+                              unsigned int n_components, const CorrectionExchange &exchange,
+                              std::vector<double> &lambda, double tolerance = 1e-12, unsigned int max_iterations = 50000);
 } // namespace shard::particles

@@ -75,10 +75,12 @@ namespace shard::time
 
     /**
      * @brief Size of the next step at time @p t: the fixed step if one is set, otherwise the
-     * safety factor times @p stable_dt; never past the end time.
+     * held step, kept while it lies in [(1 - b), 1] times the safety factor times
+     * @p stable_dt and reset to that bound when it leaves (b the step size band); never past
+     * the end time.
      */
     double
-    next_dt(double stable_dt, double t) const;
+    next_dt(double stable_dt, double t);
 
     /// d += dt v on owned entries.
     void
@@ -105,6 +107,8 @@ namespace shard::time
     double       end_time_           = 1e-4;
     double       safety_factor_      = 0.9;
     double       fixed_dt_           = 0.;
+    double       step_band_          = 0.05;
+    double       held_dt_            = 0.;
     unsigned int max_steps_          = 0;
     double       energy_error_limit_ = 0.1;
     bool         declared_           = false;

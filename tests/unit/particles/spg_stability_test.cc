@@ -37,15 +37,16 @@ namespace
   };
 
   FormulationOptions
-  make(const Smoothing s, const Stabilization st, const double alpha, const bool vci)
+  make(const Smoothing s, const Stabilization st, const double alpha, const Correction correction)
   {
     FormulationOptions o;
     o.smoothing            = s;
     o.stabilization        = st;
     o.residual_coefficient = alpha;
-    o.gradient_correction  = vci;
+    o.correction           = correction;
     return o;
   }
+  constexpr Correction none = Correction::none, pg = Correction::petrov_galerkin, cc = Correction::consistent;
 
   /// A particle block n^3 at spacing 1 with hex-mesh nodal volumes and boundary area vectors.
   struct Block
@@ -55,6 +56,7 @@ namespace
     std::vector<double> volume, area;
     LocalStencils       stencils;
     SpgOperator         op;
+    CorrectionSolve     solve;
 
     Block(const unsigned int n_, const double dilation, const FormulationOptions &options, const double jitter = 0,
           const bool constrain_boundary = false)
@@ -98,6 +100,7 @@ namespace
               volume.push_back(v);
               area.insert(area.end(), a.begin(), a.end());
             }
+      consistent_area_vectors();
       RkParameters params;
       params.dilation = dilation;
       std::vector<unsigned int> owned(cloud.position.size());
@@ -108,7 +111,7 @@ namespace
       for (unsigned int p = 0; p < owned.size(); ++p)
         lambda[p] = volume[p] * p_modulus / (dilation * dilation);
       op.reinit(stencils, options, lambda);
-      if (options.gradient_correction)
+      if (options.correction == Correction::petrov_galerkin)
         {
           const unsigned int  m = size();
           std::vector<double> c(3 * m), b(3 * m), w(m), xi(3 * m);
@@ -118,12 +121,73 @@ namespace
               xi[3 * k + i] = (b[3 * k + i] - c[3 * k + i]) / w[k];
           op.set_gradient_correction(xi);
         }
+      if (options.correction == Correction::consistent)
+        {
+          const ConsistentCorrection correction(stencils, cloud.position, volume.data());
+          CorrectionExchange         one_rank;
+          one_rank.assemble = one_rank.distribute = one_rank.sum = [](std::vector<double> &) {};
+          std::vector<double> lambda;
+          solve = solve_consistent_correction(correction, area.data(), cloud.position,
+                                              std::vector<unsigned int>(size(), 0u), 1, one_rank, lambda);
+          op.replace_gradients(correction.corrected_gradients(lambda.data()));
+        }
     }
 
     unsigned int
     size() const
     {
       return cloud.position.size();
+    }
+
+    /// Replaces the area shares by the exact nodal area vectors a_J = sum over boundary quads of
+    /// int N_J n dA (2x2 Gauss, exact for bilinear faces), so that sum_J a_J (x) X_J = V 1 holds
+    /// also where the boundary nodes are jittered along their face.
+    void
+    consistent_area_vectors()
+    {
+      std::fill(area.begin(), area.end(), 0.);
+      const auto index = [&](const unsigned int i, const unsigned int j, const unsigned int k) {
+        return (k * n + j) * n + i;
+      };
+      const double g = 0.5 / std::sqrt(3.);
+      for (unsigned int c = 0; c < 3; ++c) // face normal direction
+        for (const unsigned int side : {0u, n - 1})
+          for (unsigned int b = 0; b + 1 < n; ++b)
+            for (unsigned int a = 0; a + 1 < n; ++a)
+              {
+                // Corners in the (a, b) plane of the two tangential directions t1, t2.
+                const unsigned int t1 = (c + 1) % 3, t2 = (c + 2) % 3;
+                unsigned int       node[4];
+                const unsigned int da[4] = {0, 1, 1, 0}, db[4] = {0, 0, 1, 1};
+                for (unsigned int v = 0; v < 4; ++v)
+                  {
+                    unsigned int idx[3];
+                    idx[c]  = side;
+                    idx[t1] = a + da[v];
+                    idx[t2] = b + db[v];
+                    node[v] = index(idx[0], idx[1], idx[2]);
+                  }
+                for (const double xi : {0.5 - g, 0.5 + g})
+                  for (const double eta : {0.5 - g, 0.5 + g})
+                    {
+                      const double N[4]  = {(1 - xi) * (1 - eta), xi * (1 - eta), xi * eta, (1 - xi) * eta};
+                      const double Nx[4] = {-(1 - eta), 1 - eta, eta, -eta};
+                      const double Ne[4] = {-(1 - xi), -xi, xi, 1 - xi};
+                      double       dx[3] = {0, 0, 0}, de[3] = {0, 0, 0};
+                      for (unsigned int v = 0; v < 4; ++v)
+                        for (unsigned int d = 0; d < 3; ++d)
+                          {
+                            dx[d] += Nx[v] * cloud.position[node[v]][d];
+                            de[d] += Ne[v] * cloud.position[node[v]][d];
+                          }
+                      double nd[3] = {dx[1] * de[2] - dx[2] * de[1], dx[2] * de[0] - dx[0] * de[2],
+                                      dx[0] * de[1] - dx[1] * de[0]};
+                      const double sign = (nd[c] > 0) == (side > 0) ? 0.25 : -0.25; // weight 1/4, outward
+                      for (unsigned int v = 0; v < 4; ++v)
+                        for (unsigned int d = 0; d < 3; ++d)
+                          area[3 * node[v] + d] += sign * N[v] * nd[d];
+                    }
+              }
     }
 
     /// The force (external minus internal, i.e. -K d) of the linear small-strain model.
@@ -202,10 +266,11 @@ namespace
     return s;
   }
 
-  const Form default_form{"default (two-level + R2 0.1)",
-                          make(Smoothing::two_level, Stabilization::residual, 0.1, false), true};
-  const Form dni_form{"plain DNI RK", make(Smoothing::none, Stabilization::none, 0, false)};
-  const Form r0_form{"plain two-level (R0)", make(Smoothing::two_level, Stabilization::none, 0, false)};
+  const Form default_form{"default (two-level + R2 0.1 + consistent)",
+                          make(Smoothing::two_level, Stabilization::residual, 0.1, cc), true};
+  const Form dni_form{"plain DNI RK", make(Smoothing::none, Stabilization::none, 0, none)};
+  const Form r0_form{"plain two-level (R0)", make(Smoothing::two_level, Stabilization::none, 0, none)};
+  const Form r2_form{"two-level + R2 0.1", make(Smoothing::two_level, Stabilization::residual, 0.1, none)};
 } // namespace
 
 // (a) Zero modes of a free 6x6x6 block at dilations 1.5 and 2.5.
@@ -215,13 +280,14 @@ TEST(SpgStability, FreeBlockZeroModeCount)
               "max |Im lambda| / lmax | min Re lambda / lmax\n");
   const Form scan[] = {dni_form,
                        r0_form,
-                       {"two-level + R2 0.01 + VCI", make(Smoothing::two_level, Stabilization::residual, 0.01, true)},
-                       {"two-level + R2 0.03 + VCI", make(Smoothing::two_level, Stabilization::residual, 0.03, true)},
+                       r2_form,
+                       {"two-level + R2 0.03", make(Smoothing::two_level, Stabilization::residual, 0.03, none)},
+                       {"two-level + R2 0.1 + Petrov-Galerkin", make(Smoothing::two_level, Stabilization::residual, 0.1, pg)},
+                       {"DNI + consistent", make(Smoothing::none, Stabilization::none, 0, cc)},
+                       {"two-level + consistent", make(Smoothing::two_level, Stabilization::none, 0, cc)},
+                       {"two-level + R2 0.03 + consistent", make(Smoothing::two_level, Stabilization::residual, 0.03, cc)},
                        default_form,
-                       {"two-level + R2 0.3 + VCI", make(Smoothing::two_level, Stabilization::residual, 0.3, true)},
-                       {"two-level + R2 1 + VCI", make(Smoothing::two_level, Stabilization::residual, 1., true)},
-                       {"DNI + R2 0.1 + VCI", make(Smoothing::none, Stabilization::residual, 0.1, true)},
-                       {"two-level + R2 0.03", make(Smoothing::two_level, Stabilization::residual, 0.03, false)}};
+                       {"two-level + R2 0.3 + consistent", make(Smoothing::two_level, Stabilization::residual, 0.3, cc)}};
   for (const double dilation : {1.5, 2.5})
     for (const Form &form : scan)
       {
@@ -248,10 +314,11 @@ TEST(SpgStability, OddEvenPatternsCarryEnergy)
   std::printf("form | dilation | axis | Rayleigh quotient / lmax\n");
   const Form forms[] = {dni_form,
                         r0_form,
-                        {"two-level + R2 0.03 + VCI", make(Smoothing::two_level, Stabilization::residual, 0.03, true)},
+                        r2_form,
+                        {"two-level + consistent", make(Smoothing::two_level, Stabilization::none, 0, cc)},
+                        {"two-level + R2 0.03 + consistent", make(Smoothing::two_level, Stabilization::residual, 0.03, cc)},
                         default_form,
-                        {"two-level + R2 0.3 + VCI", make(Smoothing::two_level, Stabilization::residual, 0.3, true)},
-                        {"two-level + R2 0.1 + VCI", make(Smoothing::two_level, Stabilization::residual, 0.1, true)}};
+                        {"two-level + R2 0.3 + consistent", make(Smoothing::two_level, Stabilization::residual, 0.3, cc)}};
   for (const double dilation : {1.5, 2.5})
     for (const Form &form : forms)
       {
@@ -320,12 +387,14 @@ TEST(SpgStability, GalerkinPatchTest)
   const auto   linear  = [&](const Point3 &x, const unsigned int i) {
     return 1e-4 * (i + 1) + H[i][0] * x[0] + H[i][1] * x[1] + H[i][2] * x[2];
   };
-  const Form forms[] = {{"plain DNI RK", make(Smoothing::none, Stabilization::none, 0, false)},
-                        {"plain two-level (R0)", make(Smoothing::two_level, Stabilization::none, 0, false)},
-                        {"two-level + R2 0.1", make(Smoothing::two_level, Stabilization::residual, 0.1, false)},
-                        {"DNI + VCI", make(Smoothing::none, Stabilization::none, 0, true)},
-                        {"two-level + VCI", make(Smoothing::two_level, Stabilization::none, 0, true)},
-                        {"two-level + R2 0.1 + VCI", make(Smoothing::two_level, Stabilization::residual, 0.1, true)},
+  const Form forms[] = {dni_form,
+                        r0_form,
+                        r2_form,
+                        {"DNI + Petrov-Galerkin", make(Smoothing::none, Stabilization::none, 0, pg)},
+                        {"two-level + Petrov-Galerkin", make(Smoothing::two_level, Stabilization::none, 0, pg)},
+                        {"two-level + R2 0.1 + Petrov-Galerkin", make(Smoothing::two_level, Stabilization::residual, 0.1, pg)},
+                        {"DNI + consistent", make(Smoothing::none, Stabilization::none, 0, cc)},
+                        {"two-level + consistent", make(Smoothing::two_level, Stabilization::none, 0, cc)},
                         default_form};
   std::printf("form | dilation | max |u - u_linear| / max |u_linear|\n");
   for (const double dilation : {1.5, 2.5})
@@ -375,7 +444,7 @@ TEST(SpgStability, GalerkinPatchTest)
               scale = std::max(scale, std::abs(linear(b.cloud.position[p], i)));
             }
         std::printf("%s | %.1f | %.3e\n", form.name, dilation, err / scale);
-        if (form.options.gradient_correction)
+        if (form.options.correction != Correction::none)
           {
             EXPECT_LT(err / scale, 1e-6) << form.name << " at dilation " << dilation;
           }
@@ -385,8 +454,8 @@ TEST(SpgStability, GalerkinPatchTest)
 // The residual force is minus the gradient of its energy and vanishes for linear fields.
 TEST(SpgStability, ResidualForceIsEnergyGradient)
 {
-  const Block        b(5, 1.5, make(Smoothing::two_level, Stabilization::residual, 0.1, false), 0.2);
-  const Block        plain(5, 1.5, make(Smoothing::two_level, Stabilization::none, 0, false), 0.2);
+  const Block        b(5, 1.5, make(Smoothing::two_level, Stabilization::residual, 0.1, none), 0.2);
+  const Block        plain(5, 1.5, make(Smoothing::two_level, Stabilization::none, 0, none), 0.2);
   const unsigned int m = b.size();
   std::mt19937       rng(11);
   std::uniform_real_distribution<double> r(-1e-3, 1e-3);
@@ -425,9 +494,10 @@ TEST(SpgStability, ResidualForceIsEnergyGradient)
 // sum_J a_J phi_K(X_J) (zero away from the surface), and total force zero.
 TEST(SpgStability, GradientCorrectionMeetsIntegrationConstraint)
 {
-  for (const bool vci : {false, true})
+  const char *names[] = {"none", "Petrov-Galerkin", "consistent"};
+  for (const Correction correction : {none, pg, cc})
     {
-      const Block        b(6, 2.5, make(Smoothing::two_level, Stabilization::none, 0, vci), 0.2);
+      const Block        b(6, 2.5, make(Smoothing::two_level, Stabilization::none, 0, correction), 0.2);
       const unsigned int m = b.size();
       std::vector<double> c(3 * m), bb(3 * m), w(m);
       b.op.integration_terms(b.volume.data(), b.area.data(), c.data(), bb.data(), w.data());
@@ -443,11 +513,15 @@ TEST(SpgStability, GradientCorrectionMeetsIntegrationConstraint)
           err = std::max(err, std::abs(-f[k] - bb[k]));
           total[k % 3] += f[k];
         }
-      std::printf("gradient correction %s: max |f_K - boundary integral| = %.3e\n", vci ? "on" : "off", err);
-      if (vci)
-        EXPECT_LT(err, 1e-12);
-      else
+      std::printf("gradient correction %s: max |f_K - boundary integral| = %.3e", names[int(correction)], err);
+      if (correction == cc)
+        std::printf(" (CG %u iterations, defect %.2e -> %.2e, inconsistency %.1e)", b.solve.iterations,
+                    b.solve.initial_defect, b.solve.final_defect, b.solve.inconsistency);
+      std::printf("\n");
+      if (correction == none)
         EXPECT_GT(err, 1e-3); // the uncorrected nodal integration misses the constraint
+      else
+        EXPECT_LT(err, 1e-10);
       for (const double t : total)
         EXPECT_LT(std::abs(t), 1e-12);
     }
