@@ -5,6 +5,7 @@
 #include <deal.II/base/mpi.h>
 
 #include <algorithm>
+#include <stdexcept>
 #include <cmath>
 #include <iostream>
 #include <sstream>
@@ -260,6 +261,14 @@ namespace shard::particles
                     << " or fewer than 4 neighbours) and use Shepard functions (constant consistency only)" << text
                     << "\n";
       }
+  }
+
+  void
+  ParticleSet::replace_gradients(const std::vector<double> &gradients)
+  {
+    if (gradients.size() != stencils_.g.grad.size())
+      throw std::invalid_argument("ParticleSet::replace_gradients: one gradient per stencil entry of G expected");
+    std::copy(gradients.begin(), gradients.end(), stencils_.g.grad.begin());
   }
 
   std::size_t

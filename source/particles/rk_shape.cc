@@ -456,4 +456,23 @@ namespace shard::particles
       }
     return st;
   }
+  bool
+  invert_spd4(const double *matrix, double *inverse)
+  {
+    double A[4][4], L[4][4] = {}, D[4];
+    for (unsigned int r = 0; r < 4; ++r)
+      for (unsigned int c = 0; c < 4; ++c)
+        A[r][c] = matrix[4 * r + c];
+    if (!ldlt_factorize(A, L, D))
+      return false;
+    for (unsigned int c = 0; c < 4; ++c)
+      {
+        double x[4] = {0, 0, 0, 0};
+        x[c]        = 1;
+        ldlt_solve(L, D, x);
+        for (unsigned int r = 0; r < 4; ++r)
+          inverse[4 * r + c] = x[r];
+      }
+    return true;
+  }
 } // namespace shard::particles

@@ -118,7 +118,7 @@ namespace shard::particles
   }
 
   void
-  SpgForce::prepare(const mesh::Discretization &discretization, const ParticleSet &particles,
+  SpgForce::prepare(const mesh::Discretization &discretization, ParticleSet &particles,
                     const materials::MaterialLibrary &library)
   {
     particles_      = &particles;
@@ -220,11 +220,11 @@ namespace shard::particles
         op_.set_gradient_correction(std::move(xi));
       }
     if (options_.correction == Correction::consistent)
-      prepare_consistent_correction();
+      prepare_consistent_correction(particles);
   }
 
   void
-  SpgForce::prepare_consistent_correction()
+  SpgForce::prepare_consistent_correction(ParticleSet &particles)
   {
     const auto        &st = particles_->stencils();
     const auto        &X  = discretization_->reference_positions();
@@ -285,7 +285,7 @@ namespace shard::particles
       std::cerr << "shard: warning: the consistent gradient correction did not converge (" << solve.iterations
                 << " iterations, defect " << solve.initial_defect << " -> " << solve.final_defect
                 << "); the Galerkin patch test holds only to that level.\n";
-    op_.replace_gradients(correction.corrected_gradients(lambda.data()));
+    particles.replace_gradients(correction.corrected_gradients(lambda.data()));
   }
 
   void

@@ -116,11 +116,8 @@ namespace shard::particles
       throw std::invalid_argument("SpgOperator: one residual weight per owned particle expected");
     lambda_ = lambda;
     xi_.clear();
-    g_values_.clear();
-    g_view_ = view(stencils.g, true);
-    a_view_ = view(stencils.a, false);
-    const CsrView g = g_view_;
-    const CsrView a = a_view_;
+    const CsrView g = view(stencils.g, true);
+    const CsrView a = view(stencils.a, false);
     smoothing_.reinit(a, g, n_k_);
     if (options_.smoothing == Smoothing::two_level)
       kernel_.reinit(a, g, n_k_);
@@ -230,20 +227,6 @@ namespace shard::particles
   }
 
   void
-  SpgOperator::replace_gradients(std::vector<double> gradients)
-  {
-    if (gradients.size() != 3 * std::size_t(g_view_.offsets[g_view_.n_rows]))
-      throw std::invalid_argument("SpgOperator: one gradient per stencil entry of G expected");
-    g_values_        = std::move(gradients);
-    CsrView g        = g_view_;
-    g.values         = g_values_.data();
-    const CsrView &a = options_.smoothing == Smoothing::two_level ?
-                         a_view_ :
-                         CsrView{n_j_, identity_offsets_.data(), identity_columns_.data(), identity_values_.data(), 1};
-    kernel_.reinit(a, g, n_k_);
-  }
-
-  void
   SpgOperator::smooth_owned(const double *in, double *out) const
   {
     const CsrView &a = smoothing_.interpolation();
@@ -308,50 +291,9 @@ namespace shard::particles
   {
     return sizeof(*this) + vector_bytes(identity_offsets_) + vector_bytes(identity_columns_) +
            vector_bytes(identity_values_) + kernel_bytes(kernel_) + kernel_bytes(smoothing_) + vector_bytes(lambda_) +
-           vector_bytes(xi_) + vector_bytes(g_values_) + vector_bytes(scratch_j_) + vector_bytes(scratch_j9_) +
+           vector_bytes(xi_) + vector_bytes(scratch_j_) + vector_bytes(scratch_j9_) +
            vector_bytes(scratch_k_) + vector_bytes(scratch_k9_);
   }
-
-  namespace
-  {
-    /// Inverse of a symmetric positive definite 4x4 matrix (Gauss-Jordan with partial pivoting).
-    bool
-    invert4(const double *m, double *inv)
-    {
-      double a[4][8];
-      for (unsigned int r = 0; r < 4; ++r)
-        for (unsigned int c = 0; c < 8; ++c)
-          a[r][c] = c < 4 ? m[4 * r + c] : (c - 4 == r ? 1. : 0.);
-      double scale = 0;
-      for (unsigned int r = 0; r < 4; ++r)
-        scale = std::max(scale, std::abs(a[r][r]));
-      for (unsigned int c = 0; c < 4; ++c)
-        {
-          unsigned int p = c;
-          for (unsigned int r = c + 1; r < 4; ++r)
-            if (std::abs(a[r][c]) > std::abs(a[p][c]))
-              p = r;
-          if (!(std::abs(a[p][c]) > 1e-13 * scale))
-            return false;
-          for (unsigned int k = 0; k < 8; ++k)
-            std::swap(a[c][k], a[p][k]);
-          const double d = 1. / a[c][c];
-          for (unsigned int k = 0; k < 8; ++k)
-            a[c][k] *= d;
-          for (unsigned int r = 0; r < 4; ++r)
-            if (r != c)
-              {
-                const double f = a[r][c];
-                for (unsigned int k = 0; k < 8; ++k)
-                  a[r][k] -= f * a[c][k];
-              }
-        }
-      for (unsigned int r = 0; r < 4; ++r)
-        for (unsigned int c = 0; c < 4; ++c)
-          inv[4 * r + c] = a[r][c + 4];
-      return true;
-    }
-  } // namespace
 
   ConsistentCorrection::ConsistentCorrection(const LocalStencils &stencils, const std::vector<Point3> &position_j,
                                              const double *volume)
@@ -385,7 +327,7 @@ namespace shard::particles
                 m[4 * r + c] += p[r] * p[c];
           }
         // A stencil that does not span 3-D (a Shepard fallback row) is left uncorrected.
-        if (!invert4(m, &inverse_moment_[16 * i]))
+        if (!invert_spd4(m, &inverse_moment_[16 * i]))
           std::fill(&inverse_moment_[16 * i], &inverse_moment_[16 * i] + 16, std::nan(""));
       }
   }
@@ -558,7 +500,7 @@ namespace shard::particles
     for (unsigned int b = 0; b < n_components; ++b)
       {
         double inv[16];
-        if (!invert4(&sums[31 * b], inv))
+        if (!invert_spd4(&sums[31 * b], inv))
           continue;
         for (unsigned int a = 0; a < 4; ++a)
           for (unsigned int c = 0; c < 3; ++c)

@@ -139,6 +139,15 @@ namespace shard::particles
       return global_id_[i];
     }
 
+    /**
+     * @brief Overwrites the gradient values of the G stencils in place (same pattern, 3 per
+     * entry), e.g. with ConsistentCorrection::corrected_gradients(); operators built on the
+     * stencils see the new values.
+     * @throws std::invalid_argument on a size mismatch
+     */
+    void
+    replace_gradients(const std::vector<double> &gradients);
+
     /// The RK parameters (dilation, support, condition limit).
     const RkParameters &
     rk_parameters() const

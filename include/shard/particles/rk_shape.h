@@ -213,4 +213,12 @@ namespace shard::particles
                    const std::vector<Point3> &support_radii,
                    const CsrPattern          &neighbors,
                    const RkParameters        &params);
+
+  /**
+   * @brief Inverse of a symmetric positive definite 4x4 matrix (row-major, 16 doubles) by the
+   * LDL^T factorisation the moment matrices use.
+   * @return false, leaving @p inverse untouched, when a pivot is not clearly positive
+   */
+  bool
+  invert_spd4(const double *matrix, double *inverse);
 } // namespace shard::particles

@@ -53,7 +53,7 @@ namespace shard::particles
      * @note Collective.
      */
     void
-    prepare(const mesh::Discretization &discretization, const ParticleSet &particles,
+    prepare(const mesh::Discretization &discretization, ParticleSet &particles,
             const materials::MaterialLibrary &library);
 
     /// Adds rho0 V_I to the owned particle DOFs (call after the FE mass is compressed).
@@ -182,9 +182,10 @@ namespace shard::particles
     void
     gather(const mesh::Vector &v, std::vector<double> &out) const;
 
-    /// Solves for the consistent gradient correction and hands G + C to the operator (collective).
+    /// Solves for the consistent gradient correction and writes G + C into the stencils of
+    /// @p particles, which the operator reads (collective).
     void
-    prepare_consistent_correction();
+    prepare_consistent_correction(ParticleSet &particles);
 
     [[noreturn]] void
     fail(unsigned int i, unsigned int step, const std::string &what) const;

@@ -133,7 +133,9 @@ namespace shard::particles
   {
   public:
     /**
-     * @brief Stores the stencils (which must outlive this object) and the options.
+     * @brief Stores the stencils (which must outlive this object) and the options. Stencil
+     * values are read through views at every evaluation, so gradients replaced in place (the
+     * consistent correction) take effect without a new reinit().
      * @param lambda residual weights Lambda_I = V_I M_I / a_I^2 of the owned rows (M the
      *        P-wave modulus, a the support radius), used by R2
      */
@@ -186,14 +188,6 @@ namespace shard::particles
     void
     set_gradient_correction(std::vector<double> xi);
 
-    /**
-     * @brief Replaces the nodal gradients G (3 per stencil entry of LocalStencils::g, same
-     * pattern) used by the kinematics and the force, e.g. by
-     * ConsistentCorrection::corrected_gradients().
-     */
-    void
-    replace_gradients(std::vector<double> gradients);
-
     /// Applies R1 to the owned rows: out_I = (A in)_I for I < n_i (3 per row).
     void
     smooth_owned(const double *in, double *out) const;
@@ -245,8 +239,6 @@ namespace shard::particles
     SpgKernel                 kernel_;     // A used for u (identity for DNI) and G
     SpgKernel                 smoothing_;  // RK A for the residual and the filter
     std::vector<double>       lambda_, xi_;
-    CsrView                   a_view_, g_view_;
-    std::vector<double>       g_values_; // replaced gradients (empty: those of the stencils)
     mutable std::vector<double> scratch_j_, scratch_j9_, scratch_k_, scratch_k9_;
   };
 
