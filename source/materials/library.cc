@@ -4,6 +4,7 @@
  * @brief The registry of material models: every model is registered here and nowhere else.
  */
 #include <shard/materials/elastic.h>
+#include <shard/materials/kcc.h>
 #include <shard/materials/material.h>
 #include <shard/materials/von_mises.h>
 
@@ -30,6 +31,7 @@ namespace shard::materials
     constexpr Entry registry[] = {
       {"elastic", &make<Elastic>},
       {"von mises", &make<VonMises>},
+      {"kcc", &make<KccConcrete>},
     };
   } // namespace
 

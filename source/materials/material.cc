@@ -23,4 +23,8 @@ namespace shard::materials
     const std::size_t size = static_cast<std::size_t>(n) * n_state_slots();
     std::fill(state, state + size, 0.);
   }
+
+  void
+  Material::write_resolved_parameters(std::ostream &) const
+  {}
 } // namespace shard::materials

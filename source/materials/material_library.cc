@@ -1,6 +1,9 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/materials/material_library.h>
 
+#include <fstream>
+#include <sstream>
+
 
 namespace shard::materials
 {
@@ -70,5 +73,25 @@ namespace shard::materials
   MaterialLibrary::get(const std::string &name) const
   {
     return *entries_.at(name).material;
+  }
+
+  void
+  MaterialLibrary::write_resolved_parameters(const std::string &filename) const
+  {
+    std::ostringstream body;
+    for (const auto &name : names_)
+      {
+        std::ostringstream one;
+        entries_.at(name).material->write_resolved_parameters(one);
+        if (!one.str().empty())
+          body << "  subsection " << name << "\n" << one.str() << "  end\n";
+      }
+    if (body.str().empty())
+      return;
+    std::ofstream out(filename);
+    out << "# Resolved parameters of the models that generate them (doc/materials/kcc.md).\n"
+        << "# Paste a subsection into the scene to freeze or edit the generated values.\n"
+        << "subsection C - Materials\n"
+        << body.str() << "end\n";
   }
 } // namespace shard::materials

@@ -173,6 +173,7 @@ namespace shard
         history_ << "\n";
         std::ofstream used(output_.directory() + "/parameters.prm");
         prm_.print_parameters(used, ParameterHandler::ShortPRM | ParameterHandler::KeepDeclarationOrder);
+        materials_.write_resolved_parameters(output_.directory() + "/generated_parameters.prm");
       }
 
     // Initial state: kinetic energy of the input, then the kinematic conditions at t = 0.

@@ -21,6 +21,7 @@
 #include <shard/base/parameters.h>
 
 #include <cmath>
+#include <iosfwd>
 #include <memory>
 #include <string>
 #include <vector>
@@ -120,6 +121,15 @@ namespace shard::materials
      */
     virtual void
     update(const PointBatch &batch) const = 0;
+
+    /**
+     * @brief Writes the model's resolved parameter set as `set key = value` lines, for
+     * models that generate parameters (the run echoes it into its output directory).
+     * The default writes nothing.
+     * @param out The stream, positioned inside the material's subsection.
+     */
+    virtual void
+    write_resolved_parameters(std::ostream &out) const;
   };
 
   /// Standard slot names that output and failure checks look for.

@@ -34,6 +34,14 @@ namespace shard::materials
     void
     prepare();
 
+    /**
+     * @brief Writes the resolved parameters of every material that generates them
+     * (Material::write_resolved_parameters) as a .prm file; writes no file when none does.
+     * @param filename The file to write.
+     */
+    void
+    write_resolved_parameters(const std::string &filename) const;
+
     /// Names in input order.
     const std::vector<std::string> &
     names() const
