@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
-// The shard program: run a scene, print the parameters, help and version.
+// The shard program: run a scene, drive a material point, print the parameters, help and version.
 #include <shard/base/version.h>
+#include <shard/driver/material_test.h>
 #include <shard/simulation/simulation.h>
 
 #include <deal.II/base/mpi.h>
@@ -20,16 +21,88 @@ namespace
     "  shard print-parameters [FILE.prm] [--set ...]\n"
     "      Writes every parameter with its documentation, unit, range and default (or the value\n"
     "      given in FILE.prm). Named subsections (bodies, materials, conditions) follow FILE.prm.\n"
+    "  shard material-test FILE.prm [--set ...] [--print-parameters]\n"
+    "      Drives one point of a material of 'C - Materials' along the path of 'M - Material test'\n"
+    "      (unconfined, triaxial, hydrostatic, cyclic, ...) on one rank. Writes history.csv,\n"
+    "      summary.json, parameters.prm and material_test.png into its output directory.\n"
+    "      --print-parameters lists the keys of 'C - Materials' and 'M - Material test' instead.\n"
     "  shard --help      This text.\n"
     "  shard --version   Version and git description.\n"
     "\n"
     "Run in parallel with: mpirun -np N shard run FILE.prm\n"
-    "Exit codes: 0 completed, 1 bad input, 2 bad command line, 3 unstable run.\n";
+    "Exit codes: 0 completed, 1 bad input, 2 bad command line, 3 unstable run (material-test: a\n"
+    "non-finite value from the material or a lateral stress condition without solution).\n";
 
   bool
   is_root(MPI_Comm comm)
   {
     return dealii::Utilities::MPI::this_mpi_process(comm) == 0;
+  }
+
+  /// `shard material-test FILE.prm [--set ...] [--print-parameters]` on rank 0 only.
+  int
+  material_test(const std::vector<std::string> &args, MPI_Comm comm)
+  {
+    if (!is_root(comm))
+      return 0;
+    const unsigned int n_ranks = dealii::Utilities::MPI::n_mpi_processes(comm);
+    try
+      {
+        std::string              file;
+        std::vector<std::string> overrides;
+        bool                     print = false;
+        for (unsigned int i = 1; i < args.size(); ++i)
+          {
+            if (args[i] == "--set" && i + 1 < args.size())
+              overrides.push_back(args[++i]);
+            else if (args[i].rfind("--set=", 0) == 0)
+              overrides.push_back(args[i].substr(6));
+            else if (args[i] == "--print-parameters")
+              print = true;
+            else if (file.empty() && args[i].rfind("--", 0) != 0)
+              file = args[i];
+            else
+              {
+                std::cerr << "shard: unexpected argument '" << args[i] << "'.\n\n" << usage;
+                return 2;
+              }
+          }
+        if (file.empty() && !print)
+          {
+            std::cerr << "shard: 'material-test' needs a parameter file.\n\n" << usage;
+            return 2;
+          }
+        if (n_ranks > 1)
+          std::cerr << "shard: material-test runs on rank 0 only; the other " << n_ranks - 1
+                    << " rank(s) do nothing.\n";
+        shard::base::PrmSource source = file.empty() ? shard::base::PrmSource() : shard::base::PrmSource(file);
+        for (const auto &o : overrides)
+          source.add_override(o);
+        shard::driver::MaterialTest test;
+        test.read(source);
+        if (print)
+          {
+            test.print_parameters(std::cout);
+            return 0;
+          }
+        const auto result = test.run(std::cout);
+        if (result.exit_code != 0)
+          std::cerr << "\nshard: material test stopped: " << result.message
+                    << "\nThe output written before this step is intact.\n";
+        else if (result.limit_point)
+          std::cout << "shard: the path ended at a limit point of the material: " << result.message << "\n";
+        return result.exit_code;
+      }
+    catch (const shard::base::InputError &e)
+      {
+        std::cerr << "shard: input error: " << e.what() << "\n";
+        return 1;
+      }
+    catch (const std::exception &e)
+      {
+        std::cerr << "shard: error: " << e.what() << "\n";
+        return 1;
+      }
   }
 } // namespace
 
@@ -52,6 +125,8 @@ main(int argc, char **argv)
                   << DEAL_II_PACKAGE_VERSION << "\n";
       return 0;
     }
+  if (args[0] == "material-test")
+    return material_test(args, comm);
   if (args[0] != "run" && args[0] != "print-parameters")
     {
       if (is_root(comm))

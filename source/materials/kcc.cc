@@ -507,8 +507,8 @@ namespace shard::materials
     const KccParameters &p = par_;
     std::ostringstream   s;
     s.precision(10);
-    const auto set = [&](const char *key, const auto &value) { s << "  set " << key << " = " << value << "\n"; };
-    s << "  # resolved K&C set (generated from f'c = " << p.compressive_strength
+    const auto set = [&](const char *key, const auto &value) { s << "    set " << key << " = " << value << "\n"; };
+    s << "    # resolved K&C set (generated from f'c = " << p.compressive_strength
       << " Pa where the input says auto)\n";
     set("model", "kcc");
     set("density", p.density);
@@ -541,7 +541,7 @@ namespace shard::materials
     set("tension DIF cap", p.dif_t_cap);
     set("localization width", p.localization_width);
     set("failure scaled damage", p.failure_scaled_damage);
-    s << "  # derived: f'c on the maximum surface = " << p.fc << " Pa, f'yc = " << p.fyc
+    s << "    # derived: f'c on the maximum surface = " << p.fc << " Pa, f'yc = " << p.fyc
       << " Pa, psi_uc = " << p.psi_uc << ", psi_bc = " << p.psi_bc << ", lambda_m = " << p.lambda_m
       << ", initial K = " << p.eos_modulus.front() << " Pa, G = " << shear_modulus(p.eos_modulus.front())
       << " Pa\n";

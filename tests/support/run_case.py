@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: LGPL-2.1-or-later
-"""Run a shard scene and check its history.csv (standard library only).
+"""Run a shard scene (or a `shard material-test` case) and check its history.csv (standard library only).
 
 A case is a directory holding <case>.prm, or a path <case>.prm; beside the .prm any of:
   <case>.reference   CSV ('nan' skips a cell): a 'time' column and history columns with values from a closed form
@@ -12,9 +12,14 @@ A case is a directory holding <case>.prm, or a path <case>.prm; beside the .prm 
                      types: mean (from, to), first_crossing (level), last_crossing (level),
                             max_abs (optional from), final, max, min; optional "scale" multiplies the value.
   <case>.summary     JSON list of checks on summary.json: {"key", "expected", "rel" | "abs"};
-                     a key "results/x" looks into the results object.
+                     a key "a/b" looks into object a (run: "results/x"; material-test:
+                     "final_state/effective plastic strain").
 
-Options: --np N runs with mpiexec; --compare-ranks A B runs at both counts and requires the
+Options: --command NAME is the shard command (default `run`; `material-test` for a material point
+case, whose history.csv has the same 'time' column and is checked the same way); --output-key PATH
+is the key that sets the output directory (default `J - Output/directory`; for material-test
+`M - Material test/output directory`). The progress lines are switched off only for `run`.
+--np N runs with mpiexec; --compare-ranks A B runs at both counts and requires the
 histories to agree to --rel (default 1e-8) relative to max(|a|, |b|, scale), where the scale of
 an energy column is the largest energy term of the run, of a momentum component the largest
 component, of the energy error 1, and of any other column its largest magnitude.
@@ -75,8 +80,9 @@ def run_shard(args, np, outdir, extra_sets=()):
     cmd = []
     if np > 0:
         cmd = [args.mpiexec] + args.mpiexec_flags.split() + ["-np", str(np)]
-    cmd += [args.shard, "run", case_base(args) + ".prm", "--set", f"J - Output/directory={outdir}",
-            "--set", "J - Output/progress interval=0"]
+    cmd += [args.shard, args.command, case_base(args) + ".prm", "--set", f"{args.output_key}={outdir}"]
+    if args.command == "run":
+        cmd += ["--set", "J - Output/progress interval=0"]
     for s in list(args.set or []) + list(extra_sets):
         cmd += ["--set", s]
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
@@ -205,6 +211,9 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--shard", required=True)
     ap.add_argument("--case", required=True)
+    ap.add_argument("--command", default="run", help="shard command: run (default) or material-test")
+    ap.add_argument("--output-key", default="J - Output/directory",
+                    help="key of the output directory (material-test: 'M - Material test/output directory')")
     ap.add_argument("--np", type=int, default=0)
     ap.add_argument("--mpiexec", default="mpiexec")
     ap.add_argument("--mpiexec-flags", default="--allow-run-as-root --oversubscribe")

@@ -194,7 +194,7 @@ TEST(ElasticTest, RejectsPoissonRatioOutsideOpenRange)
 
 TEST(ElasticTest, RegistryAndNoHistory)
 {
-  EXPECT_EQ(materials::material_model_names(), "elastic|von mises");
+  EXPECT_EQ(materials::material_model_names(), "elastic|von mises|kcc");
   EXPECT_TRUE(materials::create_material("no such model") == nullptr);
   const auto material = make("elastic");
   EXPECT_EQ(material->model_name(), "elastic");
