@@ -55,9 +55,11 @@ namespace
     return p;
   }
 
+  double characteristic_length = 0.1; ///< h passed to the model by advance()
+
   Point
   advance(const KccConcrete &m, const Point &in, const std::array<double, 6> &de, const double dt,
-          const double h = 0.1)
+          const double h = characteristic_length)
   {
     Point out = in;
     for (unsigned int c = 0; c < 6; ++c)
@@ -171,6 +173,7 @@ namespace
     double delta_at_peak = 0.;
     double rate_factor_at_peak = 0.;
     double final_stress = 0.;
+    double work         = 0.; ///< int sigma_xx d eps_xx (J/m^3)
   };
 
   /// Drives eps_xx monotonically to @p target (sign gives the direction) in steps of @p inc.
@@ -187,6 +190,7 @@ namespace
         const auto next = controlled_step(m, point, d, control, lateral, dt, &ratio);
         if (!next)
           break; // snap-back of the point under mixed control: the path ends (see kcc.md)
+        r.work += 0.5 * (point.stress[0] + next->stress[0]) * (next->strain[0] - point.strain[0]);
         point          = *next;
         const double a = std::abs(point.stress[0]);
         if (a > r.peak)
@@ -324,11 +328,9 @@ TEST_P(KccStrength, EosPassesThroughItsTableAndUnloadsWithTheTabulatedModulus)
   EXPECT_NEAR(eos.compaction_at_pressure(0., xm), 0.0305 - 123.48 / 15680., 1e-12);
   // Loaded to -0.02 (between rows): p and K interpolated; p = 0 at -0.01351.
   const auto   s  = eos.evaluate(0.02, 0.);
-  const double sc = GetParam() == 48. ? 1. : 45.6 / 48.;
   EXPECT_NEAR(s.pressure / MPa, (GetParam() == 48. ? 90.97 : 88.05), 0.02);
   EXPECT_NEAR(s.unloading_modulus / 1e9, (GetParam() == 48. ? 14.02 : 13.57), 0.01);
   EXPECT_NEAR(eos.compaction_at_pressure(0., 0.02), 0.01351, 2e-5);
-  (void)sc;
   // A hydrostatic path through the model follows the table: no deviator, no damage.
   Point pt = fresh_point(m);
   for (int k = 0; k < 305; ++k)
@@ -498,6 +500,30 @@ TEST(KccRobustness, RandomIncrementsStayOnOrInsideTheSurface)
         }
       EXPECT_EQ(failures, 0u);
     }
+}
+
+TEST(KccRegularization, EnergyPerCrackAreaIsNearlyIndependentOfTheSize)
+{
+  // Uniaxial tension to complete softening with localization width w = 88 mm: the work per unit
+  // volume times h stays within 20 % over h = 22 ... 176 mm (an 8x range), while without the
+  // regularization it scales with h (design/materials.md 3.4, doc/materials/kcc.md decision 10).
+  KccParameters in       = make_model(48. * MPa).parameters();
+  in.localization_width  = 0.088;
+  KccConcrete m;
+  m.set_parameters(in);
+  const KccConcrete plain = make_model(48. * MPa);
+  std::vector<double> g, g_plain;
+  for (const double h : {0.022, 0.088, 0.176})
+    {
+      characteristic_length = h;
+      g.push_back(h * drive(m, fresh_point(m), 4e-3, 2e-7, Control::lateral, 0.).work);
+      g_plain.push_back(h * drive(plain, fresh_point(plain), 4e-3, 2e-7, Control::lateral, 0.).work);
+    }
+  characteristic_length = 0.1;
+  for (const double v : g)
+    EXPECT_NEAR(v / g[1], 1., 0.2); // measured -11 % (22 mm) and +15 % (176 mm): the pre-peak work scales with h
+  EXPECT_NEAR(g[1], g_plain[1], 1e-6 * g[1]); // h = w: the table as given
+  EXPECT_GT(g_plain[2] / g_plain[0], 6.);     // no regularization: proportional to h
 }
 
 INSTANTIATE_TEST_SUITE_P(FcMPa, KccStrength, ::testing::Values(45.6, 48.));
