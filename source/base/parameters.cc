@@ -31,31 +31,56 @@ namespace shard::base
     return out;
   }
 
+  std::vector<double>
+  parse_numbers(const std::string &text)
+  {
+    std::istringstream  in(text);
+    std::vector<double> values;
+    std::string         word;
+    while (in >> word)
+      {
+        std::size_t used = 0;
+        double      value;
+        try
+          {
+            value = std::stod(word, &used);
+          }
+        catch (const std::exception &)
+          {
+            used = 0;
+          }
+        if (used != word.size())
+          throw std::invalid_argument("'" + word + "' is not a number");
+        values.push_back(value);
+      }
+    return values;
+  }
+
+  std::string
+  json_escape(const std::string &text)
+  {
+    std::string out;
+    for (const char c : text)
+      {
+        if (c == '"' || c == '\\')
+          out += '\\';
+        if (c == '\n')
+          {
+            out += "\\n";
+            continue;
+          }
+        out += c;
+      }
+    return out;
+  }
+
   std::vector<std::vector<double>>
   parse_table(const std::string &text, const unsigned int n_columns)
   {
     std::vector<std::vector<double>> rows;
     for (const auto &row_text : split(text, ';'))
       {
-        std::istringstream  in(row_text);
-        std::vector<double> row;
-        std::string         word;
-        while (in >> word)
-          {
-            std::size_t used = 0;
-            double      value;
-            try
-              {
-                value = std::stod(word, &used);
-              }
-            catch (const std::exception &)
-              {
-                used = 0;
-              }
-            if (used != word.size())
-              throw std::invalid_argument("'" + word + "' is not a number");
-            row.push_back(value);
-          }
+        std::vector<double> row = parse_numbers(row_text);
         if (row.size() != n_columns)
           throw std::invalid_argument("row '" + row_text + "' has " + std::to_string(row.size()) +
                                       " numbers, expected " + std::to_string(n_columns));

@@ -70,24 +70,6 @@ namespace shard::driver
       return std::isfinite(x) ? to_text(x + 0.) : std::string("null");
     }
 
-    std::string
-    json_escape(const std::string &s)
-    {
-      std::string out;
-      for (const char c : s)
-        {
-          if (c == '"' || c == '\\')
-            out += '\\';
-          if (c == '\n')
-            {
-              out += "\\n";
-              continue;
-            }
-          out += c;
-        }
-      return out;
-    }
-
     /// Quotes @p s for /bin/sh.
     std::string
     shell_quote(const std::string &s)
@@ -121,26 +103,7 @@ namespace shard::driver
     {
       std::string spaced = text;
       std::replace(spaced.begin(), spaced.end(), ',', ' ');
-      std::istringstream  in(spaced);
-      std::vector<double> values;
-      std::string         word;
-      while (in >> word)
-        {
-          std::size_t used = 0;
-          double      value;
-          try
-            {
-              value = std::stod(word, &used);
-            }
-          catch (const std::exception &)
-            {
-              used = 0;
-            }
-          if (used != word.size())
-            throw std::invalid_argument("'" + word + "' is not a number");
-          values.push_back(value);
-        }
-      return values;
+      return base::parse_numbers(spaced);
     }
 
     /// Number of steps of the legs 0 -> t_1 -> t_2 ... in steps of at most @p increment.
@@ -748,14 +711,14 @@ namespace shard::driver
     std::ostringstream j;
     j << "{\n";
     j << "  \"shard_version\": \"" << version_string << " (" << git_description << ")\",\n";
-    j << "  \"parameter_file\": \"" << json_escape(source_.filename()) << "\",\n";
+    j << "  \"parameter_file\": \"" << base::json_escape(source_.filename()) << "\",\n";
     j << "  \"status\": \"" << (result.exit_code != 0 ? "stopped" : result.limit_point ? "limit point" : "completed")
       << "\",\n";
     if (!result.message.empty())
-      j << "  \"message\": \"" << json_escape(result.message) << "\",\n";
-    j << "  \"path\": \"" << json_escape(path_) << "\",\n";
-    j << "  \"material\": \"" << json_escape(material_) << "\",\n";
-    j << "  \"model\": \"" << json_escape(material.model_name()) << "\",\n";
+      j << "  \"message\": \"" << base::json_escape(result.message) << "\",\n";
+    j << "  \"path\": \"" << base::json_escape(path_) << "\",\n";
+    j << "  \"material\": \"" << base::json_escape(material_) << "\",\n";
+    j << "  \"model\": \"" << base::json_escape(material.model_name()) << "\",\n";
     j << "  \"confinement\": " << json_number(confinement_) << ",\n";
     j << "  \"steps\": " << result.steps << ",\n";
     j << "  \"hydrostatic_steps\": " << result.hydrostatic_steps << ",\n";
@@ -776,11 +739,11 @@ namespace shard::driver
     j << "  \"final_wave_speed\": " << json_number(last.wave_speed) << ",\n";
     j << "  \"final_state\": {";
     for (unsigned int s = 0; s < slots.size(); ++s)
-      j << (s ? ", " : "") << "\"" << json_escape(slots[s]) << "\": "
+      j << (s ? ", " : "") << "\"" << base::json_escape(slots[s]) << "\": "
         << json_number(s < last.state.size() ? last.state[s] : std::nan(""));
     j << "},\n";
-    j << "  \"files\": {\"history\": \"" << json_escape(dir) << "/history.csv\", \"parameters\": \""
-      << json_escape(dir) << "/parameters.prm\"}\n";
+    j << "  \"files\": {\"history\": \"" << base::json_escape(dir) << "/history.csv\", \"parameters\": \""
+      << base::json_escape(dir) << "/parameters.prm\"}\n";
     j << "}\n";
     write_file_atomically(dir + "/summary.json", j.str());
 

@@ -801,12 +801,11 @@ namespace shard::materials
         const double yc     = current_surface(p, lambda, rf, stretch);
         const double psi_p  = psi(ph);
         double       cos_theta = 1.;
-        const auto   angle = [&]() { return cos_lode_angle(s); };
         double scale = 1.;
         double dp    = 0.; // increment of effective plastic strain
         if (q > psi_p * yc)
           {
-            cos_theta       = angle();
+            cos_theta       = cos_lode_angle(s);
             const double rp = willam_warnke(cos_theta, psi_p);
             if (q > rp * yc)
               {
@@ -935,7 +934,7 @@ namespace shard::materials
           const double y2 = current_surface(p, lambda, rf, stretch);
           if (q2 > psi(ph2) * y2)
             {
-              const double lim = willam_warnke(angle(), psi(ph2)) * y2;
+              const double lim = willam_warnke(cos_lode_angle(s), psi(ph2)) * y2;
               if (q2 > lim)
                 {
                   dp += (q2 - lim) / (3. * g);

@@ -48,24 +48,6 @@ namespace shard
     };
 
     std::string
-    json_escape(const std::string &s)
-    {
-      std::string out;
-      for (const char c : s)
-        {
-          if (c == '"' || c == '\\')
-            out += '\\';
-          if (c == '\n')
-            {
-              out += "\\n";
-              continue;
-            }
-          out += c;
-        }
-      return out;
-    }
-
-    std::string
     number(const double x)
     {
       if (!std::isfinite(x))
@@ -455,11 +437,11 @@ namespace shard
     std::ostringstream j;
     j << "{\n";
     j << "  \"shard_version\": \"" << version_string << " (" << git_description << ")\",\n";
-    j << "  \"title\": \"" << json_escape(title_) << "\",\n";
-    j << "  \"parameter_file\": \"" << json_escape(source_.filename()) << "\",\n";
+    j << "  \"title\": \"" << base::json_escape(title_) << "\",\n";
+    j << "  \"parameter_file\": \"" << base::json_escape(source_.filename()) << "\",\n";
     j << "  \"status\": \"" << result.status << "\",\n";
     if (!result.message.empty())
-      j << "  \"message\": \"" << json_escape(result.message) << "\",\n";
+      j << "  \"message\": \"" << base::json_escape(result.message) << "\",\n";
     j << "  \"steps\": " << step_ << ",\n";
     j << "  \"final_time\": " << number(t_) << ",\n";
     j << "  \"last_dt\": " << number(dt_) << ",\n";
@@ -490,12 +472,12 @@ namespace shard
     j << "  \"results\": {";
     const auto names = quantities_.names();
     for (unsigned int i = 0; i < names.size(); ++i)
-      j << (i ? ", " : "") << "\"" << json_escape(names[i]) << "\": " << number(q_final_[i]) << ", \""
-        << json_escape(names[i]) << "_min\": " << number(q_min_[i]) << ", \"" << json_escape(names[i])
+      j << (i ? ", " : "") << "\"" << base::json_escape(names[i]) << "\": " << number(q_final_[i]) << ", \""
+        << base::json_escape(names[i]) << "_min\": " << number(q_min_[i]) << ", \"" << base::json_escape(names[i])
         << "_max\": " << number(q_max_[i]);
     j << "},\n";
-    j << "  \"files\": {\"history\": \"" << json_escape(output_.directory()) << "/history.csv\", \"fields\": \""
-      << json_escape(output_.pvd_path()) << "\", \"parameters\": \"" << json_escape(output_.directory())
+    j << "  \"files\": {\"history\": \"" << base::json_escape(output_.directory()) << "/history.csv\", \"fields\": \""
+      << base::json_escape(output_.pvd_path()) << "\", \"parameters\": \"" << base::json_escape(output_.directory())
       << "/parameters.prm\"}\n";
     j << "}\n";
     output::write_file_atomically(output_.directory() + "/summary.json", j.str());

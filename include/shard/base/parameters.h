@@ -143,6 +143,17 @@ namespace shard::base
   std::vector<std::vector<double>>
   parse_table(const std::string &text, unsigned int n_columns);
 
+  /**
+   * @brief Parses the white-space separated numbers of @p text (every word must be a whole
+   * number). Throws std::invalid_argument naming the first word that is not a number.
+   */
+  std::vector<double>
+  parse_numbers(const std::string &text);
+
+  /// Escapes quotes, backslashes and newlines of @p text for a JSON string.
+  std::string
+  json_escape(const std::string &text);
+
   /// Parses "a, b, c" into three doubles; throws std::invalid_argument otherwise.
   std::array<double, 3>
   parse_point(const std::string &text);
