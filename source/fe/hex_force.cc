@@ -48,9 +48,10 @@ namespace shard::fe
 
   void
   HexForce::prepare(const mesh::Discretization &discretization, const materials::MaterialLibrary &library,
-                    const std::vector<bool> &skip_bodies)
+                    const std::vector<bool> &converted_cells)
   {
     discretization_         = &discretization;
+    library_                = &library;
     viscous_                = hourglass_type_ == "viscous";
     const auto &dh          = discretization.dof_handler();
     const auto &partitioner = *discretization.partitioner();
@@ -76,7 +77,7 @@ namespace shard::fe
     std::vector<Raw> raw;
     for (const auto &cell : dh.active_cell_iterators())
       if (cell->is_locally_owned() &&
-          !(cell->material_id() < skip_bodies.size() && skip_bodies[cell->material_id()]))
+          !(cell->active_cell_index() < converted_cells.size() && converted_cells[cell->active_cell_index()]))
         {
           Raw r;
           r.body  = cell->material_id();
@@ -94,6 +95,7 @@ namespace shard::fe
     body_.resize(n);
     group_of_.resize(n);
     volume0_.resize(n);
+    element_dt_.assign(n, 1e300);
     stress_.assign(6 * n, 0.);
     hourglass_.assign(12 * n, 0.);
     groups_.assign(material_names.size(), Group());
@@ -130,13 +132,71 @@ namespace shard::fe
   void
   HexForce::add_lumped_mass(mesh::Vector &mass) const
   {
-    for (unsigned int e = 0; e < n_local_elements(); ++e)
+    const auto &pt = *discretization_->partitioner();
+    for (const auto &cell : discretization_->dof_handler().active_cell_iterators())
+      if (cell->is_locally_owned())
+        {
+          double x[8][3], B[8][3];
+          for (unsigned int a = 0; a < 8; ++a)
+            for (unsigned int i = 0; i < 3; ++i)
+              x[a][i] = cell->vertex(a)[i];
+          const double rho = library_->get(discretization_->bodies()[cell->material_id()].material).density();
+          const double m   = rho * hex_volume_gradient(x, B) / 8.;
+          for (unsigned int a = 0; a < 8; ++a)
+            for (unsigned int i = 0; i < 3; ++i)
+              mass.local_element(pt.global_to_local(cell->vertex_dof_index(a, i))) += m;
+        }
+  }
+
+  void
+  HexForce::remove_elements(const std::vector<unsigned int> &elements)
+  {
+    std::vector<bool> drop(n_local_elements(), false);
+    for (const unsigned int e : elements)
+      drop[e] = true;
+    unsigned int n = 0;
+    for (auto &grp : groups_)
       {
-        const double m = groups_[group_of_[e]].material->density() * volume0_[e] / 8.;
-        for (unsigned int a = 0; a < 8; ++a)
-          for (unsigned int i = 0; i < 3; ++i)
-            mass.local_element(nodes_[8 * e + a] + i) += m;
+        const unsigned int begin = n;
+        for (unsigned int e = grp.begin; e < grp.end; ++e)
+          if (!drop[e])
+            {
+              std::copy(&nodes_[8 * e], &nodes_[8 * e] + 8, &nodes_[8 * n]);
+              std::copy(&stress_[6 * e], &stress_[6 * e] + 6, &stress_[6 * n]);
+              std::copy(&hourglass_[12 * e], &hourglass_[12 * e] + 12, &hourglass_[12 * n]);
+              std::copy(&grp.state[std::size_t(e - grp.begin) * grp.n_slots],
+                        &grp.state[std::size_t(e - grp.begin + 1) * grp.n_slots],
+                        &grp.state[std::size_t(n - begin) * grp.n_slots]);
+              cell_index_[n] = cell_index_[e];
+              body_[n]       = body_[e];
+              group_of_[n]   = group_of_[e];
+              volume0_[n]    = volume0_[e];
+              element_dt_[n] = element_dt_[e];
+              ++n;
+            }
+        grp.state.resize(std::size_t(n - begin) * grp.n_slots);
+        grp.begin = begin;
+        grp.end   = n;
       }
+    nodes_.resize(8 * n);
+    stress_.resize(6 * n);
+    hourglass_.resize(12 * n);
+    cell_index_.resize(n);
+    body_.resize(n);
+    group_of_.resize(n);
+    volume0_.resize(n);
+    element_dt_.resize(n);
+    std::fill(element_of_cell_.begin(), element_of_cell_.end(), -1);
+    for (unsigned int e = 0; e < n; ++e)
+      element_of_cell_[cell_index_[e]] = static_cast<int>(e);
+  }
+
+  void
+  HexForce::relocalize(const Utilities::MPI::Partitioner &old_partitioner,
+                       const Utilities::MPI::Partitioner &new_partitioner)
+  {
+    for (auto &j : nodes_)
+      j = new_partitioner.global_to_local(old_partitioner.local_to_global(j));
   }
 
   double
@@ -299,7 +359,8 @@ namespace shard::fe
               if (!std::isfinite(work) || !std::isfinite(c[k]))
                 fail(e, d, step, "non-finite stress (sigma_xx = " + std::to_string(sig[0]) + " Pa)");
               result.internal_energy += work;
-              result.stable_dt = std::min(result.stable_dt, length[k] / c[k]);
+              element_dt_[e]   = length[k] / c[k];
+              result.stable_dt = std::min(result.stable_dt, element_dt_[e]);
 
               // Stiffness hourglass control: the hourglass forces rotate with the element and
               // grow with the hourglass displacement increment.

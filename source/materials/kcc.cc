@@ -570,6 +570,13 @@ namespace shard::materials
     return std::sqrt((k + 4. / 3. * shear_modulus(k)) / par_.density);
   }
 
+  std::array<double, 2>
+  KccConcrete::elastic_moduli() const
+  {
+    const double k = par_.eos_modulus.front();
+    return {{k, shear_modulus(k)}};
+  }
+
   std::vector<std::string>
   KccConcrete::state_slot_names() const
   {

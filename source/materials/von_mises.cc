@@ -170,6 +170,12 @@ namespace shard::materials
     return elasticity_.wave_speed();
   }
 
+  std::array<double, 2>
+  VonMises::elastic_moduli() const
+  {
+    return {{elasticity_.bulk_modulus(), elasticity_.shear_modulus()}};
+  }
+
   std::vector<std::string>
   VonMises::state_slot_names() const
   {

@@ -84,8 +84,17 @@ namespace shard::output
     const auto        &dh   = discretization_->dof_handler();
     const auto         comm = discretization_->communicator();
     const unsigned int n    = discretization_->triangulation().n_active_cells();
-    Vector<float> sxx(n), syy(n), szz(n), syz(n), sxz(n), sxy(n), vm(n), eps(n), failed(n), body(n), rank(n);
+    Vector<float> sxx(n), syy(n), szz(n), syz(n), sxz(n), sxy(n), vm(n), eps(n), failed(n), body(n), rank(n),
+      converted(n);
     const float this_rank = Utilities::MPI::this_mpi_process(comm);
+    // Cells without an element are converted to particles (their stress lives at the particles).
+    for (const auto &cell : dh.active_cell_iterators())
+      if (cell->is_locally_owned())
+        {
+          converted[cell->active_cell_index()] = hex_->element_of_cell(cell->active_cell_index()) < 0;
+          body[cell->active_cell_index()]      = cell->material_id();
+          rank[cell->active_cell_index()]      = this_rank;
+        }
     for (unsigned int e = 0; e < hex_->n_local_elements(); ++e)
       {
         const unsigned int c = hex_->cell_index(e);
@@ -113,7 +122,7 @@ namespace shard::output
     const std::pair<Vector<float> *, const char *> cell_fields[] = {
       {&sxx, "stress_xx"}, {&syy, "stress_yy"}, {&szz, "stress_zz"}, {&syz, "stress_yz"},
       {&sxz, "stress_xz"}, {&sxy, "stress_xy"}, {&vm, "von_mises_stress"}, {&eps, "plastic_strain"},
-      {&failed, "failed"}, {&body, "material"}, {&rank, "mpi_rank"}};
+      {&failed, "failed"}, {&body, "material"}, {&rank, "mpi_rank"}, {&converted, "converted"}};
     for (const auto &[field, name] : cell_fields)
       data_out.add_data_vector(*field, name, DataOut<3>::type_cell_data);
     data_out.build_patches(mapping);
@@ -123,14 +132,22 @@ namespace shard::output
     const std::string pvtu =
       data_out.write_vtu_with_pvtu_record(directory_ + "/", "solution", records_.size(), comm, 4);
     records_.emplace_back(time, pvtu);
+    if (particles_->active())
+      write_particles(time, d, v);
+    // One time series: part 0 the mesh (converted cells flagged), part 1 the particles.
     if (Utilities::MPI::this_mpi_process(comm) == 0)
       {
         std::ostringstream pvd;
-        DataOutBase::write_pvd_record(pvd, records_);
+        pvd.precision(16);
+        pvd << "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\" "
+               "byte_order=\"LittleEndian\">\n<Collection>\n";
+        for (const auto &[t, file] : records_)
+          pvd << "  <DataSet timestep=\"" << t << "\" group=\"\" part=\"0\" file=\"" << file << "\"/>\n";
+        for (const auto &[t, file] : particle_records_)
+          pvd << "  <DataSet timestep=\"" << t << "\" group=\"\" part=\"1\" file=\"" << file << "\"/>\n";
+        pvd << "</Collection>\n</VTKFile>\n";
         write_file_atomically(pvd_path(), pvd.str());
       }
-    if (particles_->active())
-      write_particles(time, d, v);
   }
 
   void
@@ -188,6 +205,7 @@ namespace shard::output
     scalar_field("failed", [&](const unsigned int i) { return particles_->state_value(i, materials::slot::failed); });
     scalar_field("material", [&](const unsigned int i) { return double(set.body(i)); });
     scalar_field("volume", [&](const unsigned int i) { return set.volume(i); });
+    scalar_field("interface", [&](const unsigned int i) { return set.is_interface(i) ? 1. : 0.; });
     scalar_field("mpi_rank", [&](const unsigned int) { return double(rank); });
     out << "</PointData>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n";
     write_file_atomically(directory_ + "/" + piece(rank), out.str());
@@ -201,7 +219,7 @@ namespace shard::output
              "<PDataArray type=\"Float64\" Name=\"displacement\" NumberOfComponents=\"3\"/>\n"
              "<PDataArray type=\"Float64\" Name=\"velocity\" NumberOfComponents=\"3\"/>\n";
         for (const char *name : {"stress_xx", "stress_yy", "stress_zz", "stress_yz", "stress_xz", "stress_xy",
-                                 "von_mises_stress", "plastic_strain", "failed", "material", "volume", "mpi_rank"})
+                                 "von_mises_stress", "plastic_strain", "failed", "material", "volume", "interface", "mpi_rank"})
           p << "<PDataArray type=\"Float64\" Name=\"" << name << "\"/>\n";
         p << "</PPointData>\n";
         for (unsigned int r = 0; r < n_ranks; ++r)

@@ -5,6 +5,8 @@
 #include <deal.II/base/mpi.h>
 
 #include <algorithm>
+#include <cstdint>
+#include <map>
 #include <stdexcept>
 #include <cmath>
 #include <iostream>
@@ -17,7 +19,7 @@ namespace shard::particles
   namespace
   {
     /// Doubles per particle in the gathered table.
-    constexpr unsigned int record = 13;
+    constexpr unsigned int record = 15;
     enum Field
     {
       f_id = 0,
@@ -26,8 +28,19 @@ namespace shard::particles
       f_h  = 5,
       f_a  = 8,
       f_interpolating = 11,
-      f_body          = 12
+      f_body          = 12,
+      f_interface     = 13,
+      f_component     = 14
     };
+
+    /// Union-find root with path halving.
+    std::uint64_t
+    find_root(std::map<std::uint64_t, std::uint64_t> &parent, std::uint64_t x)
+    {
+      while (parent[x] != x)
+        x = parent[x] = parent[parent[x]];
+      return x;
+    }
   } // namespace
 
   bool
@@ -69,7 +82,7 @@ namespace shard::particles
   }
 
   void
-  ParticleSet::prepare(mesh::Discretization &discretization,
+  ParticleSet::prepare(mesh::Discretization &discretization, const std::vector<bool> &converted_cells,
                        const std::vector<std::pair<std::string, int>> &interpolating_faces,
                        const base::PrmSource &source)
   {
@@ -86,18 +99,46 @@ namespace shard::particles
           source.fail("E - Particles/bodies", body_names_text_, "no body named '" + name + "' in 'B - Mesh/body names'.");
         particle_body_[b] = true;
       }
+    const auto converted = [&](const unsigned int cell) {
+      return cell < converted_cells.size() && converted_cells[cell];
+    };
+    unsigned long long n_cells = 0;
+    for (const auto &cell : discretization.dof_handler().active_cell_iterators())
+      n_cells += cell->is_locally_owned() && converted(cell->active_cell_index());
+    active_ = Utilities::MPI::sum(n_cells, comm) > 0;
+    stencils_ = LocalStencils();
+    local_dof_.clear();
+    volume_.clear();
+    area_.clear();
+    spacing_.clear();
+    position_.clear();
+    body_.clear();
+    global_id_.clear();
+    interface_.clear();
+    component_.clear();
+    n_global_ = 0;
     if (!active())
       return;
     if (rank == 0 && !rk_.warning().empty())
       std::cerr << "warning: E - Particles: " << rk_.warning() << "\n";
 
-    // Nodal volume, spacing, outward area vector and the interpolating flag, summed over cells.
+    // Nodal volume, spacing, outward area vector of the converted region, the interpolating
+    // flag, the body and the number of intact (unconverted) cells, summed over cells.
     const auto  &dh = discretization.dof_handler();
     const auto  &pt = *discretization.partitioner();
     mesh::Vector volume(discretization.partitioner()), spacing(discretization.partitioner()),
       area(discretization.partitioner()), flag(discretization.partitioner());
+    std::vector<std::uint64_t> cell_nodes; // 8 global node ids per owned converted cell
     for (const auto &cell : dh.active_cell_iterators())
-      if (cell->is_locally_owned() && particle_body_[cell->material_id()])
+      if (cell->is_locally_owned() && !converted(cell->active_cell_index()))
+        for (unsigned int v = 0; v < 8; ++v)
+          {
+            // flag component 1: intact cells at the node; component 2: body + 1.
+            const unsigned int j = pt.global_to_local(cell->vertex_dof_index(v, 0));
+            flag.local_element(j + 1) += 1;
+          }
+    for (const auto &cell : dh.active_cell_iterators())
+      if (cell->is_locally_owned() && converted(cell->active_cell_index()))
         {
           double x[8][3], B[8][3], lo[3], hi[3];
           for (unsigned int v = 0; v < 8; ++v)
@@ -114,41 +155,89 @@ namespace shard::particles
             {
               const unsigned int j = pt.global_to_local(cell->vertex_dof_index(v, 0));
               volume.local_element(j) += ve / 8;
+              flag.local_element(j + 2) = cell->material_id() + 1;
               for (unsigned int c = 0; c < 3; ++c)
                 spacing.local_element(j + c) = std::max(spacing.local_element(j + c), hi[c] - lo[c]);
+              cell_nodes.push_back(cell->vertex_dof_index(v, 0) / 3);
             }
           const std::string &body_name = bodies[cell->material_id()].name;
           for (const unsigned int f : cell->face_indices())
-            if (cell->face(f)->at_boundary())
-              {
-                const auto         face = cell->face(f);
-                const auto         n    = mesh::nodal_area_vectors(cell, f);
-                bool interpolating = false;
+            {
+              // Faces of the converted region: the body's surface and the interface to intact cells.
+              const bool surface = cell->face(f)->at_boundary();
+              if (!surface && converted(cell->neighbor(f)->active_cell_index()))
+                continue;
+              const auto face = cell->face(f);
+              const auto n    = mesh::nodal_area_vectors(cell, f);
+              bool       interpolating = false;
+              if (surface)
                 for (const auto &[b, id] : interpolating_faces)
                   interpolating |= b == body_name && (id < 0 || id == static_cast<int>(face->boundary_id()));
-                for (unsigned int v = 0; v < 4; ++v)
-                  {
-                    const unsigned int j = pt.global_to_local(face->vertex_dof_index(v, 0));
-                    for (unsigned int c = 0; c < 3; ++c)
-                      area.local_element(j + c) += n[v][c];
-                    if (interpolating)
-                      flag.local_element(j) = 1;
-                  }
-              }
+              for (unsigned int v = 0; v < 4; ++v)
+                {
+                  const unsigned int j = pt.global_to_local(face->vertex_dof_index(v, 0));
+                  for (unsigned int c = 0; c < 3; ++c)
+                    area.local_element(j + c) += n[v][c];
+                  if (interpolating)
+                    flag.local_element(j) = 1;
+                }
+            }
         }
     volume.compress(VectorOperation::add);
     area.compress(VectorOperation::add);
     spacing.compress(VectorOperation::max);
-    flag.compress(VectorOperation::max);
+    // Components 0 and 2 are maxima, component 1 a count: the count is summed separately.
+    {
+      mesh::Vector intact(discretization.partitioner());
+      for (unsigned int j = 0; j < flag.locally_owned_size() + pt.n_ghost_indices(); j += 3)
+        {
+          intact.local_element(j) = flag.local_element(j + 1);
+          flag.local_element(j + 1) = 0;
+        }
+      intact.compress(VectorOperation::add);
+      flag.compress(VectorOperation::max);
+      for (unsigned int j = 0; j < flag.locally_owned_size(); j += 3)
+        flag.local_element(j + 1) = intact.local_element(j);
+    }
+
+    // Connected components of the converted cells (through shared nodes): the RK supports do
+    // not reach across components, and the correction's null space is per component. The
+    // label is the smallest global node id, so it does not depend on the partition.
+    std::map<std::uint64_t, std::uint64_t> parent;
+    for (const auto &part : Utilities::MPI::all_gather(comm, cell_nodes))
+      for (std::size_t c = 0; c < part.size(); c += 8)
+        {
+          for (unsigned int v = 0; v < 8; ++v)
+            parent.emplace(part[c + v], part[c + v]);
+          for (unsigned int v = 1; v < 8; ++v)
+            {
+              const auto a = find_root(parent, part[c]), b = find_root(parent, part[c + v]);
+              if (a != b)
+                parent[std::max(a, b)] = std::min(a, b);
+            }
+        }
+    std::map<std::uint64_t, unsigned int> component_of_root;
+    for (auto &[node, p] : parent)
+      {
+        const auto r = find_root(parent, node);
+        component_of_root.emplace(r, 0);
+      }
+    {
+      unsigned int c = 0;
+      for (auto &[root, index] : component_of_root)
+        index = c++;
+    }
+    n_components_ = component_of_root.size();
 
     // The table of this rank's particles, then of all ranks.
     const auto         &X = discretization.reference_positions();
     std::vector<double> mine;
-    for (unsigned int b = 0; b < bodies.size(); ++b)
-      if (particle_body_[b])
-        for (const unsigned int j : discretization.body_nodes(b))
+    for (unsigned int j = 0; j < pt.locally_owned_size(); j += 3)
+      if (volume.local_element(j) > 0)
           {
-            const double row[record] = {double(pt.local_to_global(j) / 3),
+            const std::uint64_t id = pt.local_to_global(j) / 3;
+            const bool interface   = flag.local_element(j + 1) > 0;
+            const double row[record] = {double(id),
                                         X.local_element(j),
                                         X.local_element(j + 1),
                                         X.local_element(j + 2),
@@ -159,8 +248,10 @@ namespace shard::particles
                                         area.local_element(j),
                                         area.local_element(j + 1),
                                         area.local_element(j + 2),
-                                        flag.local_element(j),
-                                        double(b)};
+                                        interface ? 1. : flag.local_element(j),
+                                        flag.local_element(j + 2) - 1,
+                                        interface ? 1. : 0.,
+                                        double(component_of_root.at(find_root(parent, id)))};
             mine.insert(mine.end(), row, row + record);
           }
     const auto all = Utilities::MPI::all_gather(comm, mine);
@@ -184,6 +275,7 @@ namespace shard::particles
         cloud.position.push_back(Point3{{r[f_x], r[f_x + 1], r[f_x + 2]}});
         cloud.spacing.push_back(Point3{{r[f_h], r[f_h + 1], r[f_h + 2]}});
         cloud.interpolating.push_back(r[f_interpolating] > 0 ? 1 : 0);
+        cloud.component.push_back(static_cast<unsigned int>(r[f_component]));
         if (table[p].owned)
           owned.push_back(p);
       }
@@ -221,6 +313,8 @@ namespace shard::particles
     position_.resize(n);
     body_.resize(n);
     global_id_.resize(n);
+    interface_.resize(n);
+    component_.resize(n);
     for (unsigned int i = 0; i < n; ++i)
       {
         const double *r = table[owned[i]].row;
@@ -233,6 +327,8 @@ namespace shard::particles
           }
         body_[i]      = static_cast<unsigned int>(r[f_body]);
         global_id_[i] = static_cast<unsigned long long>(r[f_id]);
+        interface_[i] = r[f_interface] > 0;
+        component_[i] = static_cast<unsigned int>(r[f_component]);
         if (!(volume_[i] > 0))
           throw base::InputError("E - Particles: particle " + std::to_string(global_id_[i]) + " has no volume");
       }
@@ -277,6 +373,6 @@ namespace shard::particles
     const auto bytes = [](const auto &v) { return v.capacity() * sizeof(v[0]); };
     return sizeof(*this) - sizeof(stencils_) + stencils_.memory_consumption() + particle_body_.capacity() / 8 +
            bytes(local_dof_) + bytes(volume_) + bytes(area_) + bytes(spacing_) + bytes(position_) + bytes(body_) +
-           bytes(global_id_);
+           bytes(global_id_) + interface_.capacity() / 8 + bytes(component_);
   }
 } // namespace shard::particles

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <map>
 #include <sstream>
 
 namespace shard::particles
@@ -233,12 +234,12 @@ namespace shard::particles
       for (unsigned int c = 0; c < 3; ++c)
         position[j][c] = X.local_element(particles_->local_dof(j) + c);
     std::vector<double>       volume(st.n_i);
-    std::vector<unsigned int> body(st.n_i);
-    unsigned int              n_bodies = discretization_->bodies().size();
+    std::vector<unsigned int> component(st.n_i);
+    const unsigned int        n_components = particles_->n_components();
     for (unsigned int i = 0; i < st.n_i; ++i)
       {
-        volume[i] = particles_->volume(i);
-        body[i]   = particles_->body(i);
+        volume[i]    = particles_->volume(i);
+        component[i] = particles_->component(i);
       }
     const ConsistentCorrection correction(st, position, volume.data());
 
@@ -275,7 +276,7 @@ namespace shard::particles
     };
     std::vector<double> lambda;
     const auto          solve = solve_consistent_correction(correction, particles_->area_vectors().data(), position,
-                                                   body, n_bodies, exchange, lambda, 1e-10);
+                                                   component, n_components, exchange, lambda, 1e-10);
     correction_solve_ = solve;
     if (solve.converged && Utilities::MPI::this_mpi_process(comm) == 0)
       std::cerr << "shard: particles: consistent gradient correction: " << solve.iterations
@@ -288,12 +289,54 @@ namespace shard::particles
     particles.replace_gradients(correction.corrected_gradients(lambda.data()));
   }
 
-  void
-  SpgForce::add_lumped_mass(mesh::Vector &mass) const
+  std::map<unsigned long long, SpgForce::SavedParticle>
+  SpgForce::save_state() const
   {
+    std::map<unsigned long long, SavedParticle> out;
     for (unsigned int i = 0; i < n_owned(); ++i)
-      for (unsigned int c = 0; c < 3; ++c)
-        mass.local_element(particles_->local_dof(i) + c) += density_[i] * particles_->volume(i);
+      {
+        SavedParticle p;
+        p.volume = particles_->volume(i);
+        p.q      = q_[i];
+        std::copy(&stress_[6 * i], &stress_[6 * i] + 6, p.stress.begin());
+        p.state.assign(state(i), state(i) + groups_[group_of_[i]].n_slots);
+        out.emplace(particles_->global_id(i), std::move(p));
+      }
+    return out;
+  }
+
+  void
+  SpgForce::set_state(const unsigned int i, const double *stress, const double *history, const double q)
+  {
+    std::copy(stress, stress + 6, &stress_[6 * i]);
+    auto &g = groups_[group_of_[i]];
+    std::copy(history, history + g.n_slots, g.state.data() + std::size_t(i - g.begin) * g.n_slots);
+    q_[i] = q;
+  }
+
+  double
+  SpgForce::reset_deformation(const mesh::Vector &d)
+  {
+    if (!active_)
+      return 0.;
+    gather(d, dk_);
+    op_.displacement(dk_.data(), u_.data());
+    op_.deformation_gradient(u_.data(), F_.data());
+    if (options_.stabilization != Stabilization::residual)
+      return 0.;
+    std::fill(fk_.begin(), fk_.end(), 0.);
+    return op_.subtract_residual_force(dk_.data(), fk_.data());
+  }
+
+  double
+  SpgForce::current_stable_dt() const
+  {
+    double dt = 1e300;
+    for (unsigned int i = 0; i < n_owned(); ++i)
+      dt = std::min(dt, length_[i] * smallest_stretch(&F_[9 * i]) /
+                          groups_[group_of_[i]].material->initial_wave_speed());
+    dt /= std::sqrt(1 + bulk_q1_ * bulk_q1_) + bulk_q1_;
+    return Utilities::MPI::min(dt, discretization_->communicator());
   }
 
   double
@@ -359,6 +402,13 @@ namespace shard::particles
         << discretization_->bodies()[particles_->body(i)].name << "' (reference position " << x[0] << ", " << x[1]
         << ", " << x[2] << ") m";
     throw fe::Instability(out.str());
+  }
+
+  const double *
+  SpgForce::state(const unsigned int i) const
+  {
+    const auto &g = groups_[group_of_[i]];
+    return g.state.data() + std::size_t(i - g.begin) * g.n_slots;
   }
 
   double

@@ -20,6 +20,26 @@ namespace shard::particles
       s.n_columns = n_columns;
     }
 
+    /// Drops the columns of @p pattern whose particle lies in another component than its row.
+    void
+    filter_components(CsrPattern &pattern, const std::vector<unsigned int> &row_component,
+                      const std::vector<unsigned int> &component)
+    {
+      if (component.empty())
+        return;
+      unsigned int out = 0, begin = 0;
+      for (std::size_t r = 0; r + 1 < pattern.row_offsets.size(); ++r)
+        {
+          const unsigned int end = pattern.row_offsets[r + 1];
+          for (unsigned int e = begin; e < end; ++e)
+            if (component[pattern.columns[e]] == row_component[r])
+              pattern.columns[out++] = pattern.columns[e];
+          begin                    = end;
+          pattern.row_offsets[r + 1] = out;
+        }
+      pattern.columns.resize(out);
+    }
+
     CsrView
     view(const Stencil &s, const bool gradient)
     {
@@ -33,7 +53,8 @@ namespace shard::particles
                        const RkParameters &params)
   {
     const unsigned int n = cloud.position.size();
-    if (cloud.spacing.size() != n || cloud.interpolating.size() != n)
+    if (cloud.spacing.size() != n || cloud.interpolating.size() != n ||
+        (!cloud.component.empty() && cloud.component.size() != n))
       throw std::invalid_argument("build_local_stencils: cloud arrays differ in length");
     const auto radii = support_radii_from_spacing(cloud.spacing, params);
 
@@ -59,7 +80,15 @@ namespace shard::particles
     std::vector<Point3> xi(out.n_i);
     for (unsigned int i = 0; i < out.n_i; ++i)
       xi[i] = cloud.position[owned[i]];
-    const CsrPattern n_owned = find_support_neighbors(xi, cloud.position, radii, params.support);
+    CsrPattern n_owned = find_support_neighbors(xi, cloud.position, radii, params.support);
+    const auto components_of = [&](const std::vector<unsigned int> &cloud_rows) {
+      std::vector<unsigned int> c;
+      if (!cloud.component.empty())
+        for (const unsigned int p : cloud_rows)
+          c.push_back(cloud.component[p]);
+      return c;
+    };
+    filter_components(n_owned, components_of(owned), cloud.component);
     for (const unsigned int c : n_owned.columns)
       add(c);
     out.n_j = out.cloud_index.size();
@@ -68,7 +97,8 @@ namespace shard::particles
     std::vector<Point3> xj(out.n_j);
     for (unsigned int j = 0; j < out.n_j; ++j)
       xj[j] = cloud.position[out.cloud_index[j]];
-    const CsrPattern n_j = find_support_neighbors(xj, cloud.position, radii, params.support);
+    CsrPattern n_j = find_support_neighbors(xj, cloud.position, radii, params.support);
+    filter_components(n_j, components_of(out.cloud_index), cloud.component);
     for (const unsigned int c : n_j.columns)
       add(c);
     out.n_k = out.cloud_index.size();

@@ -84,7 +84,7 @@ namespace shard
   {
     source_ = source;
     base::read_parameters(prm_,
-                          {this, &discretization_, &materials_, &particles_, &hex_, &spg_, &conditions_,
+                          {this, &discretization_, &materials_, &particles_, &conversion_, &hex_, &spg_, &conditions_,
                            &integrator_, &output_, &quantities_},
                           source_);
   }
@@ -106,8 +106,9 @@ namespace shard
                      "no such material in 'C - Materials/material names'.");
     materials_.prepare();
     // Particles first: their two-hop stencil widens the ghost set, which changes local indices.
-    particles_.prepare(discretization_, conditions_.faces(), source_);
-    hex_.prepare(discretization_, materials_, particles_.particle_bodies());
+    conversion_.prepare(discretization_, particles_.body_names(), source_);
+    particles_.prepare(discretization_, conversion_.converted_cells(), conditions_.faces(), source_);
+    hex_.prepare(discretization_, materials_, conversion_.converted_cells());
     spg_.prepare(discretization_, particles_, materials_);
     conditions_.prepare(discretization_);
     output_.prepare(discretization_, hex_, spg_);
@@ -115,9 +116,9 @@ namespace shard
 
     for (auto *vec : {&d_, &v_, &v_now_, &f_, &f_ext_, &mass_, &d_phys_})
       discretization_.initialize_vector(*vec);
+    // The FE lumped mass of every cell: particles at nodes keep it (formulation.md section 7).
     hex_.add_lumped_mass(mass_);
     mass_.compress(VectorOperation::add);
-    spg_.add_lumped_mass(mass_);
     mass_.update_ghost_values();
 
     // Initial velocity of each body at its nodes.
@@ -149,7 +150,7 @@ namespace shard
       {
         history_.open(output_.directory() + "/history.csv");
         history_ << "time,step,dt,kinetic_energy,internal_energy,hourglass_energy,external_work,boundary_work,"
-                    "filter_work,energy_error,momentum_x,momentum_y,momentum_z";
+                    "filter_work,conversion_energy,energy_error,momentum_x,momentum_y,momentum_z,converted_elements";
         for (const auto &name : quantities_.names())
           history_ << "," << name;
         history_ << "\n";
@@ -212,7 +213,9 @@ namespace shard
                 }
             }
             // 5. FE internal force.
-            std::string failure;
+            std::string               failure;
+            std::vector<unsigned int> to_convert;
+            bool                      convert_now = false;
             {
               PhaseTimer timer(phase_time_, 5);
               f_ = 0;
@@ -255,10 +258,14 @@ namespace shard
               PhaseTimer timer(phase_time_, 8);
               f_.compress(VectorOperation::add);
               f_ += f_ext_;
-              const double local[2] = {stable_dt_, failure.empty() ? 0. : -1.};
-              double       global[2];
-              Utilities::MPI::min(ArrayView<const double>(local, 2), comm_, ArrayView<double>(global, 2));
+              // Elements that meet a conversion criterion at the end of this step.
+              if (conversion_.is_check_step(step_) && failure.empty())
+                to_convert = conversion_.candidates(hex_, d_);
+              const double local[3] = {stable_dt_, failure.empty() ? 0. : -1., to_convert.empty() ? 0. : -1.};
+              double       global[3];
+              Utilities::MPI::min(ArrayView<const double>(local, 3), comm_, ArrayView<double>(global, 3));
               stable_dt_ = global[0];
+              convert_now = global[2] < 0;
               if (global[1] < 0)
                 {
                   std::string all;
@@ -268,6 +275,14 @@ namespace shard
                   throw fe::Instability(all);
                 }
             }
+            // 4b. Conversion (rare, collective): after the force of this step, before the
+            // kick, so that stresses, history and d all belong to the end of the step.
+            if (convert_now)
+              {
+                PhaseTimer timer(phase_time_, 4);
+                convert(to_convert);
+                to_convert.clear();
+              }
             const bool last = t_ >= end * (1 - 1e-12) ||
                               (integrator_.max_steps() > 0 && step_ >= integrator_.max_steps());
             // 9. Kick.
@@ -348,16 +363,22 @@ namespace shard
   {
     // One reduction of the energy terms and momentum.
     // The hourglass column holds the FE hourglass work plus the particle stabilization energy.
-    const double local[9] = {balance_.kinetic,       internal_energy_,       hourglass_energy_ + stabilization_energy_,
+    // The internal energy includes the elastic energy changed by conversions; the conversion
+    // energy (that change plus the jump of the stabilization energy) counts as a source.
+    const double local[9] = {balance_.kinetic,       internal_energy_ + conversion_elastic_,
+                             hourglass_energy_ + stabilization_energy_,
                              balance_.external_work, balance_.boundary_work, balance_.momentum[0],
                              balance_.momentum[1],   balance_.momentum[2],   filter_work_};
     double       g[9];
     Utilities::MPI::sum(ArrayView<const double>(local, 9), comm_, ArrayView<double>(g, 9));
     const double kinetic = g[0], internal = g[1] + g[2], external = g[3], boundary = g[4], filter = g[8];
-    const double reference =
-      std::max(initial_energy_ + std::abs(external) + std::abs(boundary) + std::abs(filter), kinetic);
-    energy_error_ =
-      reference > 0 ? (kinetic + internal - initial_energy_ - external - boundary - filter) / reference : 0.;
+    const double reference = std::max(initial_energy_ + std::abs(external) + std::abs(boundary) + std::abs(filter) +
+                                        std::abs(conversion_energy_),
+                                      kinetic);
+    energy_error_ = reference > 0 ? (kinetic + internal - initial_energy_ - external - boundary - filter -
+                                     conversion_energy_) /
+                                      reference :
+                                    0.;
     max_energy_error_ = std::max(max_energy_error_, std::abs(energy_error_));
 
     const auto q = quantities_.evaluate(physical_displacement(), v_now_, mass_, t_);
@@ -376,9 +397,10 @@ namespace shard
     if (Utilities::MPI::this_mpi_process(comm_) == 0)
       {
         char row[512];
-        std::snprintf(row, sizeof(row), "%.10e,%u,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e",
-                      t_, step_, dt_next_, kinetic, internal, g[2], external, boundary, filter, energy_error_, g[5],
-                      g[6], g[7]);
+        std::snprintf(row, sizeof(row),
+                      "%.10e,%u,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%llu", t_,
+                      step_, dt_next_, kinetic, internal, g[2], external, boundary, filter, conversion_energy_,
+                      energy_error_, g[5], g[6], g[7], conversion_.n_converted());
         history_ << row;
         for (const double x : q)
           {
@@ -401,6 +423,142 @@ namespace shard
                             " (kinetic " + g6(kinetic) + " J, internal " + g6(internal) + " J, external work " +
                             g6(external) + " J, boundary work " + g6(boundary) + " J, initial kinetic " +
                             g6(initial_energy_) + " J)");
+  }
+
+  namespace
+  {
+    /// Elastic energy density sigma : C^-1 : sigma / 2 = p^2 / (2K) + s : s / (4G) (J/m^3).
+    double
+    elastic_energy_density(const materials::Material &m, const double *s)
+    {
+      const auto   kg = m.elastic_moduli();
+      const double p  = (s[0] + s[1] + s[2]) / 3.;
+      double       ss = 0;
+      for (unsigned int c = 0; c < 3; ++c)
+        ss += (s[c] - p) * (s[c] - p) + 2 * s[c + 3] * s[c + 3];
+      return p * p / (2 * kg[0]) + ss / (4 * kg[1]);
+    }
+
+    /// Moves the owned values of @p v to the layout of @p partitioner (ghosts zero).
+    void
+    move_to_layout(mesh::Vector &v, const std::shared_ptr<const Utilities::MPI::Partitioner> &partitioner)
+    {
+      if (v.get_partitioner() == partitioner)
+        return;
+      std::vector<double> owned(v.begin(), v.end());
+      v.reinit(partitioner);
+      std::copy(owned.begin(), owned.end(), v.begin());
+    }
+  } // namespace
+
+  void
+  Simulation::convert(const std::vector<unsigned int> &elements)
+  {
+    std::vector<unsigned int> cells;
+    for (const unsigned int e : elements)
+      cells.push_back(hex_.cell_index(e));
+    const unsigned long long added = conversion_.add_cells(cells);
+    if (added == 0)
+      return;
+
+    // Volume-weighted history of the converted elements at their nodes: weight V_e / 8, then
+    // the six stresses and the history slots, packed three per node into distributed vectors.
+    unsigned int max_slots = 0;
+    for (const unsigned int e : elements)
+      max_slots = std::max(max_slots, hex_.material(e).n_state_slots());
+    max_slots                    = Utilities::MPI::max(max_slots, comm_);
+    const unsigned int n_values  = 7 + max_slots;
+    std::vector<mesh::Vector> acc((n_values + 2) / 3);
+    for (auto &a : acc)
+      discretization_.initialize_vector(a);
+    double energy[2] = {0, 0}; // elastic energy before and after, this rank
+    for (const unsigned int e : elements)
+      {
+        const auto  &m = hex_.material(e);
+        const double w = hex_.reference_volume(e) / 8;
+        std::vector<double> values(n_values, 0.);
+        values[0] = 1;
+        std::copy(hex_.stress(e), hex_.stress(e) + 6, &values[1]);
+        std::copy(hex_.state(e), hex_.state(e) + m.n_state_slots(), &values[7]);
+        for (unsigned int a = 0; a < 8; ++a)
+          for (unsigned int k = 0; k < n_values; ++k)
+            acc[k / 3].local_element(hex_.node(e, a) + k % 3) += w * values[k];
+        energy[0] += elastic_energy_density(m, hex_.stress(e)) * hex_.reference_volume(e);
+      }
+    for (auto &a : acc)
+      a.compress(VectorOperation::add);
+    const auto saved = spg_.save_state();
+    const double old_stabilization = Utilities::MPI::sum(stabilization_energy_, comm_);
+
+    // New particle set, stencils and ghost set; vectors and element nodes follow the layout.
+    hex_.remove_elements(elements);
+    const auto old_partitioner = discretization_.partitioner();
+    particles_.prepare(discretization_, conversion_.converted_cells(), conditions_.faces(), source_);
+    const auto &partitioner = discretization_.partitioner();
+    if (partitioner != old_partitioner)
+      {
+        hex_.relocalize(*old_partitioner, *partitioner);
+        for (auto *vec : {&d_, &v_, &v_now_, &f_, &f_ext_, &mass_, &d_phys_})
+          move_to_layout(*vec, partitioner);
+        for (auto &a : acc)
+          move_to_layout(a, partitioner);
+      }
+    spg_.prepare(discretization_, particles_, materials_);
+
+    // History of every owned particle: kept, or the volume average of what it had and what
+    // its newly converted cells bring, h = (V_old h_old + sum V_e/8 h_e) / V_new.
+    std::vector<double> mixed(n_values);
+    for (unsigned int i = 0; i < spg_.n_owned(); ++i)
+      {
+        const unsigned int j  = particles_.local_dof(i);
+        const auto         it = saved.find(particles_.global_id(i));
+        const auto        &m  = spg_.material(i);
+        const double       w  = acc[0].local_element(j);
+        if (w == 0)
+          {
+            if (it != saved.end())
+              spg_.set_state(i, it->second.stress.data(), it->second.state.data(), it->second.q);
+            continue;
+          }
+        const double v_old = it != saved.end() ? it->second.volume : 0.;
+        const double v_new = v_old + w;
+        if (std::abs(v_new - particles_.volume(i)) > 1e-9 * v_new)
+          throw std::logic_error("conversion: particle volume " + std::to_string(particles_.volume(i)) +
+                                 " differs from the transferred " + std::to_string(v_new));
+        for (unsigned int k = 1; k < n_values; ++k)
+          mixed[k] = acc[k / 3].local_element(j + k % 3);
+        if (it != saved.end())
+          {
+            for (unsigned int c = 0; c < 6; ++c)
+              mixed[1 + c] += v_old * it->second.stress[c];
+            for (unsigned int k = 0; k < it->second.state.size(); ++k)
+              mixed[7 + k] += v_old * it->second.state[k];
+            energy[0] += elastic_energy_density(m, it->second.stress.data()) * v_old;
+          }
+        for (unsigned int k = 1; k < n_values; ++k)
+          mixed[k] /= v_new;
+        spg_.set_state(i, &mixed[1], &mixed[7], it != saved.end() ? it->second.q : 0.);
+        energy[1] += elastic_energy_density(m, &mixed[1]) * v_new;
+      }
+
+    // Kinematics of the new stencils from the current coefficients.
+    d_.update_ghost_values();
+    v_.update_ghost_values();
+    stabilization_energy_ = spg_.reset_deformation(d_);
+    physical_step_        = ~0u;
+    quantities_.prepare(discretization_, hex_, conditions_, spg_);
+    stable_dt_ = std::min(stable_dt_, spg_.current_stable_dt());
+
+    Utilities::MPI::sum(ArrayView<const double>(energy, 2), comm_, ArrayView<double>(energy, 2));
+    const double elastic = energy[1] - energy[0];
+    conversion_elastic_ += Utilities::MPI::this_mpi_process(comm_) == 0 ? elastic : 0.;
+    conversion_energy_ += elastic + Utilities::MPI::sum(stabilization_energy_, comm_) - old_stabilization;
+    if (Utilities::MPI::this_mpi_process(comm_) == 0)
+      std::fprintf(stderr,
+                   "step %8u  conversion: %llu cells (%llu converted in all), %llu particles; energy change "
+                   "%.3e J (elastic %.3e J)\n",
+                   step_, added, conversion_.n_converted(), particles_.n_global(),
+                   conversion_energy_, elastic);
   }
 
   const mesh::Vector &
@@ -448,6 +606,9 @@ namespace shard
     j << "  \"wall_time_s\": " << number(wall_time + max_time[0]) << ",\n";
     j << "  \"n_elements\": " << discretization_.n_elements() << ",\n";
     j << "  \"n_particles\": " << particles_.n_global() << ",\n";
+    j << "  \"n_converted_elements\": " << conversion_.n_converted() << ",\n";
+    j << "  \"conversion_events\": " << conversion_.n_events() << ",\n";
+    j << "  \"conversion_energy\": " << number(conversion_energy_) << ",\n";
     j << "  \"correction_iterations\": " << spg_.correction_solve().iterations << ",\n";
     j << "  \"n_mpi_ranks\": " << Utilities::MPI::n_mpi_processes(comm_) << ",\n";
     j << "  \"energy_error\": " << number(energy_error_) << ",\n";

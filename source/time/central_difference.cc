@@ -84,7 +84,7 @@ namespace shard::time
                           bc::BoundaryConditions &conditions, mesh::Vector &v, mesh::Vector &v_now,
                           LocalBalance &balance)
   {
-    if (acceleration_.size() != v.size())
+    if (acceleration_.size() != v.size() || acceleration_.get_partitioner() != v.get_partitioner())
       {
         acceleration_.reinit(v);
         v_old_.reinit(v);

@@ -52,19 +52,35 @@ namespace shard::fe
     check_parameters(const base::PrmSource &source) const override;
 
     /**
-     * @brief Builds the element arrays from the locally owned cells, except those of the bodies
-     * flagged in @p skip_bodies (bodies made of particles).
+     * @brief Builds the element arrays from the locally owned cells, except those flagged in
+     * @p converted_cells (by active cell index; cells converted to particles).
      */
     void
     prepare(const mesh::Discretization &discretization, const materials::MaterialLibrary &library,
-            const std::vector<bool> &skip_bodies = {});
+            const std::vector<bool> &converted_cells = {});
 
     /**
-     * @brief Adds rho0 V0 / 8 of every owned element to its nodes (all three components).
-     * Ghost entries are summed; call compress(add) afterwards.
+     * @brief Adds rho0 V0 / 8 of every owned cell, converted or not, to its nodes (all three
+     * components): the node-based conversion keeps the FE lumped mass, so a converted cell's
+     * mass stays on the same nodes. Ghost entries are summed; call compress(add) afterwards.
      */
     void
     add_lumped_mass(mesh::Vector &mass) const;
+
+    /**
+     * @brief Removes the local elements @p elements (converted to particles), keeping stress,
+     * hourglass forces and history of the others.
+     */
+    void
+    remove_elements(const std::vector<unsigned int> &elements);
+
+    /**
+     * @brief Rewrites the stored local node indices after the ghost set changed: global index
+     * through @p old_partitioner, local index through @p new_partitioner.
+     */
+    void
+    relocalize(const dealii::Utilities::MPI::Partitioner &old_partitioner,
+               const dealii::Utilities::MPI::Partitioner &new_partitioner);
 
     /// Smallest L_e / c of the undeformed elements with the initial wave speed (s). @note Collective.
     double
@@ -123,6 +139,42 @@ namespace shard::fe
       return body_[e];
     }
 
+    /// Local index of the first DOF of vertex @p a (deal.II order) of local element @p e.
+    unsigned int
+    node(unsigned int e, unsigned int a) const
+    {
+      return nodes_[8 * e + a];
+    }
+
+    /// Reference volume of local element @p e (m^3).
+    double
+    reference_volume(unsigned int e) const
+    {
+      return volume0_[e];
+    }
+
+    /// Time step L_e / c_e of local element @p e at the last force evaluation (s).
+    double
+    element_stable_dt(unsigned int e) const
+    {
+      return element_dt_[e];
+    }
+
+    /// History slots of local element @p e (material().state_slot_names() order).
+    const double *
+    state(unsigned int e) const
+    {
+      const auto &grp = groups_[group_of_[e]];
+      return grp.state.data() + static_cast<std::size_t>(e - grp.begin) * grp.n_slots;
+    }
+
+    /// Material of local element @p e.
+    const materials::Material &
+    material(unsigned int e) const
+    {
+      return *groups_[group_of_[e]].material;
+    }
+
   private:
     struct Group
     {
@@ -138,13 +190,15 @@ namespace shard::fe
     double      hourglass_coefficient_ = 0.1;
     bool   declared_              = false;
 
-    const mesh::Discretization *discretization_ = nullptr;
+    const mesh::Discretization       *discretization_ = nullptr;
+    const materials::MaterialLibrary *library_        = nullptr;
     std::vector<unsigned int>   nodes_;      // 8 per element: local index of the node's first DOF
     std::vector<unsigned int>   cell_index_; // active cell index
     std::vector<unsigned int>   body_;
     std::vector<int>            element_of_cell_;
     std::vector<unsigned int>   group_of_;   // group index per element
     std::vector<double>         volume0_;
+    std::vector<double>         element_dt_; // L_e / c_e of the last force evaluation
     std::vector<double>         stress_;     // 6 per element
     std::vector<double>         hourglass_;  // 12 per element: hourglass force per mode and direction (both forms)
     std::vector<Group>          groups_;

@@ -196,6 +196,10 @@ namespace shard::materials
     double
     initial_wave_speed() const override;
 
+    /// {K, G} of the undamaged material (Pa).
+    std::array<double, 2>
+    elastic_moduli() const override;
+
     /// No history: an empty list.
     std::vector<std::string>
     state_slot_names() const override;

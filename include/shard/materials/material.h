@@ -22,6 +22,7 @@
 
 #include <cmath>
 #include <iosfwd>
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -96,6 +97,13 @@ namespace shard::materials
     /// Dilatational wave speed of the undeformed material (m/s), for the first time step.
     virtual double
     initial_wave_speed() const = 0;
+
+    /**
+     * @brief Bulk and shear modulus {K, G} of the undamaged material at zero pressure (Pa), for
+     * the elastic energy estimate sigma : C^-1 : sigma / 2 (conversion energy bookkeeping).
+     */
+    virtual std::array<double, 2>
+    elastic_moduli() const = 0;
 
     /// Names of the history slots, in storage order.
     virtual std::vector<std::string>

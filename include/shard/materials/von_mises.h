@@ -79,6 +79,10 @@ namespace shard::materials
     double
     initial_wave_speed() const override;
 
+    /// {K, G} of the undamaged material (Pa).
+    std::array<double, 2>
+    elastic_moduli() const override;
+
     /// "effective plastic strain", "failed", "effective strain rate".
     std::vector<std::string>
     state_slot_names() const override;

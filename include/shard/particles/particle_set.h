@@ -20,7 +20,7 @@ namespace shard::particles
 {
   /**
    * @brief The particle set (node-based scheme, formulation.md section 7): every node of a
-   * particle body is a particle whose coefficient d_K is the node's DOF triple in the one
+   * converted cell is a particle whose coefficient d_K is the node's DOF triple in the one
    * distributed vector; V_I = sum of V_e / 8 over its cells, m_I = the lumped FE mass.
    *
    * prepare() gathers the particle table of all ranks (global DOF, X, V, spacing, outward area
@@ -39,20 +39,54 @@ namespace shard::particles
     check_parameters(const base::PrmSource &source) const override;
 
     /**
-     * @brief Builds the particle set. Particles on the faces listed in @p interpolating_faces
-     * (body name, boundary id, -1 for all faces of the body) get interpolating rows.
+     * @brief Builds the particle set from the cells flagged in @p converted_cells (by active
+     * cell index): one particle per node of a converted cell, V_I = sum of V_e / 8 over its
+     * converted cells. Nodes shared with intact cells are interface particles: their A rows are
+     * interpolating (u_J = d_J, so the FE side sees the same nodal value) and the interface
+     * faces count as boundary of the particle domain in the area vectors. Particles on the
+     * faces listed in @p interpolating_faces (body name, boundary id, -1 for all faces of the
+     * body) get interpolating rows too. RK supports stay within one connected component of
+     * converted cells. A second call rebuilds everything (conversion during the run).
      * @throws base::InputError if a listed body does not exist.
-     * @note Collective; changes the ghost set of @p discretization.
+     * @note Collective; may widen the ghost set of @p discretization.
      */
     void
-    prepare(mesh::Discretization &discretization, const std::vector<std::pair<std::string, int>> &interpolating_faces,
-            const base::PrmSource &source);
+    prepare(mesh::Discretization &discretization, const std::vector<bool> &converted_cells,
+            const std::vector<std::pair<std::string, int>> &interpolating_faces, const base::PrmSource &source);
 
-    /// Whether any body is made of particles.
+    /// Names in `E - Particles/bodies` (bodies converted whole at set-up).
+    std::vector<std::string>
+    body_names() const
+    {
+      return base::split(body_names_text_, ',');
+    }
+
+    /// Whether there are particles anywhere.
     bool
     active() const
     {
-      return !body_names_.empty();
+      return active_;
+    }
+
+    /// Whether owned particle @p i is an interface particle (shared with intact elements).
+    bool
+    is_interface(unsigned int i) const
+    {
+      return interface_[i];
+    }
+
+    /// Connected component (of converted cells) of owned particle @p i.
+    unsigned int
+    component(unsigned int i) const
+    {
+      return component_[i];
+    }
+
+    /// Number of connected components of converted cells over all ranks.
+    unsigned int
+    n_components() const
+    {
+      return n_components_;
     }
 
     /// Whether body @p b is made of particles.
@@ -170,6 +204,7 @@ namespace shard::particles
     std::string              support_text_ = "box";
     RkParameters             rk_;
     bool                     declared_ = false;
+    bool                     active_   = false;
 
     std::vector<bool>               particle_body_;
     LocalStencils                   stencils_;
@@ -178,6 +213,9 @@ namespace shard::particles
     std::vector<Point3>             spacing_, position_;
     std::vector<unsigned int>       body_;
     std::vector<unsigned long long> global_id_;
+    std::vector<bool>               interface_;
+    std::vector<unsigned int>       component_;
+    unsigned int                    n_components_ = 0;
     unsigned long long              n_global_ = 0;
   };
 } // namespace shard::particles

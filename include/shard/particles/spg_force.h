@@ -14,6 +14,8 @@
 #include <shard/particles/particle_set.h>
 #include <shard/particles/spg_operator.h>
 
+#include <array>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -56,9 +58,40 @@ namespace shard::particles
     prepare(const mesh::Discretization &discretization, ParticleSet &particles,
             const materials::MaterialLibrary &library);
 
-    /// Adds rho0 V_I to the owned particle DOFs (call after the FE mass is compressed).
+    /// History of one particle kept across a rebuild (conversion during the run).
+    struct SavedParticle
+    {
+      /// Reference volume V_I before the rebuild (m^3).
+      double volume = 0;
+      /// Bulk viscosity of the last step (Pa).
+      double q = 0;
+      /// Cauchy stress (Pa).
+      std::array<double, 6> stress{};
+      /// History slots (material order).
+      std::vector<double> state;
+    };
+
+    /// The history of every owned particle, by global particle id.
+    std::map<unsigned long long, SavedParticle>
+    save_state() const;
+
+    /// Sets stress, history slots (material order) and bulk viscosity of owned particle @p i.
     void
-    add_lumped_mass(mesh::Vector &mass) const;
+    set_state(unsigned int i, const double *stress, const double *history, double q);
+
+    /**
+     * @brief Sets the stored deformation gradient and physical displacement from the current
+     * coefficients @p d (ghost values set), e.g. after a rebuild of the stencils, so that the
+     * next increment F_new F_old^-1 does not see the change of the stencils.
+     * @return the residual-stabilization energy W_s of the owned particles for @p d (J; 0
+     *         without the residual stabilization)
+     */
+    double
+    reset_deformation(const mesh::Vector &d);
+
+    /// Stable step estimate from the stored F and the initial wave speed (s). @note Collective.
+    double
+    current_stable_dt() const;
 
     /// Smallest L_I / c over the owned particles at t = 0 (collective).
     double
@@ -122,6 +155,17 @@ namespace shard::particles
     /// A named state slot of owned particle @p i (0 if the material has no such slot).
     double
     state_value(unsigned int i, const std::string &name) const;
+
+    /// History slots of owned particle @p i (material().state_slot_names() order).
+    const double *
+    state(unsigned int i) const;
+
+    /// Material of owned particle @p i.
+    const materials::Material &
+    material(unsigned int i) const
+    {
+      return *groups_[group_of_[i]].material;
+    }
 
     /// The particle set.
     const ParticleSet &

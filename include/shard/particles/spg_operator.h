@@ -85,6 +85,8 @@ namespace shard::particles
     /// 1 where the interpolation row is replaced by the identity (u_J = d_J): particles with
     /// an essential or traction boundary condition.
     std::vector<unsigned char> interpolating;
+    /// Connected component per particle; supports do not reach across components. Empty: one.
+    std::vector<unsigned int> component;
   };
 
   /**

@@ -8,6 +8,7 @@
 
 #include <shard/base/parameters.h>
 #include <shard/bc/boundary_conditions.h>
+#include <shard/coupling/conversion.h>
 #include <shard/fe/hex_force.h>
 #include <shard/materials/material_library.h>
 #include <shard/mesh/discretization.h>
@@ -99,6 +100,7 @@ namespace shard
     mesh::Discretization         discretization_;
     materials::MaterialLibrary   materials_;
     particles::ParticleSet       particles_;
+    coupling::Conversion         conversion_;
     fe::HexForce                 hex_;
     particles::SpgForce          spg_;
     bc::BoundaryConditions       conditions_;
@@ -113,6 +115,11 @@ namespace shard
     time::LocalBalance balance_;
     double             internal_energy_ = 0, hourglass_energy_ = 0;
     double             stabilization_energy_ = 0, filter_work_ = 0;
+    /// Energy changed by conversions (history averaging and the jump of the stabilization
+    /// energy), summed over ranks (J); booked in the internal energy and as a source.
+    double             conversion_energy_ = 0;
+    /// Elastic part of conversion_energy_ on this rank (J), included in the internal energy.
+    double             conversion_elastic_ = 0;
     double             reference_energy_ = 0, initial_energy_ = 0;
     double             t_ = 0, dt_ = 0, dt_next_ = 0, stable_dt_ = 0;
     unsigned int       step_ = 0;
@@ -124,6 +131,14 @@ namespace shard
 
     void
     record();
+    /**
+     * @brief Converts the local elements @p elements of every rank to particles at the end of
+     * a step: history transfer, particle set, stencils and ghost set rebuilt, vectors moved to
+     * the new layout (phase 4b, doc/manual/hybrid.md).
+     * @note Collective.
+     */
+    void
+    convert(const std::vector<unsigned int> &elements);
     /// Physical displacement for output and quantities: d, with u = A d at the particles
     /// (assembled once per step, then reused by the history row and the field output).
     const mesh::Vector &

@@ -1,0 +1,198 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+/**
+ * @file conversion.h
+ * @brief Element-to-particle conversion: predicted-failure regions converted at set-up and
+ *        elements converted during the run when they meet a criterion (formulation.md section 7,
+ *        node-based scheme). Subsection `G - Conversion`.
+ * @ingroup coupling
+ */
+#pragma once
+
+#include <shard/base/parameters.h>
+#include <shard/mesh/discretization.h>
+
+#include <array>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace shard::fe
+{
+  class HexForce;
+}
+
+namespace shard::coupling
+{
+  /// Parameters of one predicted-failure region (subsection `G - Conversion/<name>`).
+  struct RegionParameters
+  {
+    /// Region name (the subsection name).
+    std::string name;
+    /// Body the region applies to (name from `B - Mesh/body names`).
+    std::string body;
+    /// box, cylinder, sphere, half-space or body (every element of the body).
+    std::string shape = "box";
+    /// Box: corners "x, y, z" (m).
+    std::string lower_corner = "0, 0, 0", upper_corner = "0, 0, 0";
+    /// Sphere: centre; cylinder: centre of the start face; half-space: a point on the plane (m).
+    std::string centre = "0, 0, 0";
+    /// Sphere and cylinder radius (m).
+    double radius = 0.;
+    /// Cylinder: axis direction; half-space: normal pointing into the region.
+    std::string direction = "0, 0, 1";
+    /// Cylinder length along its axis from the centre of the start face (m).
+    double length = 0.;
+  };
+
+  /**
+   * @brief Geometric test of a region on a point (deal.II-free, so unit tests need no mesh).
+   */
+  class Region
+  {
+  public:
+    /// Shapes a region may have.
+    enum class Shape
+    {
+      box,
+      cylinder,
+      sphere,
+      half_space,
+      body
+    };
+
+    /// Builds the test from parsed parameters; throws std::invalid_argument on bad geometry.
+    Region(const RegionParameters &p, int body);
+
+    /// Whether @p x (a cell centre in the reference configuration, m) lies in the region.
+    bool
+    contains(const std::array<double, 3> &x) const;
+
+    /// Body index the region applies to.
+    int
+    body() const
+    {
+      return body_;
+    }
+
+  private:
+    Shape                 shape_;
+    int                   body_;
+    std::array<double, 3> a_{}, b_{}, direction_{};
+    double                radius_ = 0, length_ = 0;
+  };
+
+  /**
+   * @brief Smallest ratio over the eight corners of a hexahedron of the corner Jacobian in the
+   * current configuration to that in the reference one (deal.II vertex order; 1 for a rigid
+   * motion, <= 0 for a corner that folded over).
+   */
+  double
+  min_corner_jacobian_ratio(const double (&x)[8][3], const double (&X)[8][3]);
+
+  /**
+   * @brief Decides which hexahedra become particles: the cells of the predicted-failure regions
+   * at set-up and, during the run, elements of the adaptive bodies that meet a criterion.
+   *
+   * The converted set is a set of coarse-cell ids known on every rank (shard's cells are all
+   * on level 0), so owned and ghost cells carry the same flag on every rank. The history
+   * transfer itself is done by the Simulation through HexForce and SpgForce; this class keeps
+   * the set, the criteria and the event counters.
+   */
+  class Conversion : public base::ParameterOwner
+  {
+  public:
+    bool
+    declare_parameters(dealii::ParameterHandler &prm) override;
+
+    void
+    check_parameters(const base::PrmSource &source) const override;
+
+    /**
+     * @brief Resolves the regions and flags the cells converted at set-up: every cell of the
+     * bodies in @p particle_bodies (`E - Particles/bodies`) and the cells whose reference centre
+     * lies in a region.
+     * @throws base::InputError (through @p source) for an unknown body name.
+     */
+    void
+    prepare(const mesh::Discretization &discretization, const std::vector<std::string> &particle_bodies,
+            const base::PrmSource &source);
+
+    /// Flag per active cell index (owned and ghost cells): converted to particles.
+    const std::vector<bool> &
+    converted_cells() const
+    {
+      return converted_;
+    }
+
+    /// Whether any cell anywhere is converted.
+    bool
+    any_converted() const
+    {
+      return n_converted_ > 0;
+    }
+
+    /// Number of converted cells over all ranks.
+    unsigned long long
+    n_converted() const
+    {
+      return n_converted_;
+    }
+
+    /// Whether elements may convert during the run.
+    bool
+    adaptive() const
+    {
+      return !adaptive_bodies_.empty();
+    }
+
+    /// Whether the criteria are checked after step @p step.
+    bool
+    is_check_step(const unsigned int step) const
+    {
+      return adaptive() && step % check_interval_ == 0;
+    }
+
+    /**
+     * @brief Local elements of @p hex (owned, unconverted) that meet a criterion: effective
+     * plastic strain, K&C scaled damage, smallest corner Jacobian ratio (current over
+     * reference) or element time step below the floor. Only elements of adaptive bodies count.
+     * @param d displacement with ghost values (for the corner Jacobians)
+     */
+    std::vector<unsigned int>
+    candidates(const fe::HexForce &hex, const mesh::Vector &d) const;
+
+    /**
+     * @brief Adds the active cells @p cells (owned here) of every rank to the converted set
+     * and updates the flags of owned and ghost cells.
+     * @return the number of cells added over all ranks
+     * @note Collective.
+     */
+    unsigned long long
+    add_cells(const std::vector<unsigned int> &cells);
+
+    /// Number of conversion events during the run (not counting the set-up).
+    unsigned int
+    n_events() const
+    {
+      return n_events_;
+    }
+
+  private:
+    std::string                                               region_names_text_;
+    std::vector<std::string>                                  region_names_;
+    std::map<std::string, std::unique_ptr<RegionParameters>> declared_;
+    bool                                                      declared_main_ = false;
+    std::string                                               adaptive_bodies_text_;
+    std::vector<unsigned int>                                 adaptive_bodies_;
+    double                                                    plastic_strain_ = 0., scaled_damage_ = 0.;
+    double                                                    min_jacobian_ = 0., dt_floor_ = 0.;
+    unsigned int                                              check_interval_ = 1;
+
+    const mesh::Discretization *discretization_ = nullptr;
+    std::vector<bool>           converted_;
+    std::vector<bool>           adaptive_body_;
+    unsigned long long          n_converted_ = 0;
+    unsigned int                n_events_    = 0;
+  };
+} // namespace shard::coupling
