@@ -21,7 +21,7 @@ namespace shard::output
     const std::map<std::string, unsigned int> n_args = {
       {"reaction", 2},       {"max_coordinate", 2}, {"min_coordinate", 2},    {"max_radius", 2},
       {"stress", 4},         {"velocity", 4},       {"max_plastic_strain", 1}, {"odd_even", 1},
-      {"l2_error", 4}};
+      {"l2_error", 4},       {"kinetic_energy", 4}, {"stress_range", 2}};
 
     int
     axis(const std::string &s)
@@ -47,7 +47,11 @@ namespace shard::output
                       "for smooth fields); l2_error <body|all> <ux> <uy> <uz>: sqrt(sum_I m_I |u_I - u(X_I, t)|^2 / "
                       "sum_I m_I) over the nodes or particles of the body (lumped mass m_I, physical displacement "
                       "u_I) with the exact displacement u given as three muparser expressions of x, y, z "
-                      "(reference coordinates) and t, written without spaces (m).");
+                      "(reference coordinates) and t, written without spaces (m); kinetic_energy <body|all> "
+                      "<x|y|z> <from> <to>: sum of m_I |v_I|^2 / 2 over the nodes and particles whose reference "
+                      "coordinate along the axis lies in [from, to] (J); stress_range <body|all> "
+                      "<xx|yy|zz|yz|xz|xy>: largest minus smallest stress component over the elements and "
+                      "particles (Pa).");
     prm.leave_subsection();
     return true;
   }
@@ -75,7 +79,7 @@ namespace shard::output
           {
             error = "entry '" + entry + "': unknown kind '" + it.kind +
                     "'; known: reaction, max_coordinate, min_coordinate, max_radius, stress, velocity, "
-                    "max_plastic_strain, odd_even, l2_error.";
+                    "max_plastic_strain, odd_even, l2_error, kinetic_energy, stress_range.";
             return {};
           }
         const bool optional_id = it.kind == "max_radius" && it.args.size() == 3;
@@ -180,6 +184,43 @@ namespace shard::output
             if (it.args[0] != "all" && it.body < 0)
               bad(it, "no body named '" + it.args[0] + "'.");
           }
+        else if (it.kind == "kinetic_energy")
+          {
+            it.body      = it.args[0] == "all" ? -1 : discretization.body_index(it.args[0]);
+            it.component = axis(it.args[1]);
+            if (it.args[0] != "all" && it.body < 0)
+              bad(it, "no body named '" + it.args[0] + "'.");
+            if (it.component < 0)
+              bad(it, "axis must be x, y or z.");
+            double range[2];
+            for (unsigned int k = 0; k < 2; ++k)
+              try
+                {
+                  range[k] = std::stod(it.args[2 + k]);
+                }
+              catch (const std::exception &)
+                {
+                  bad(it, "'" + it.args[2 + k] + "' is not a number (from and to in m).");
+                }
+            for (unsigned int k = 0; k < discretization.bodies().size(); ++k)
+              if (it.body < 0 || static_cast<int>(k) == it.body)
+                for (const auto j : discretization.body_nodes(k))
+                  {
+                    const double x = X.local_element(j + it.component);
+                    if (x >= range[0] && x <= range[1])
+                      it.nodes.push_back(j);
+                  }
+          }
+        else if (it.kind == "stress_range")
+          {
+            it.body = it.args[0] == "all" ? -1 : discretization.body_index(it.args[0]);
+            if (it.args[0] != "all" && it.body < 0)
+              bad(it, "no body named '" + it.args[0] + "'.");
+            const std::vector<std::string> comps = {"xx", "yy", "zz", "yz", "xz", "xy"};
+            it.component = std::find(comps.begin(), comps.end(), it.args[1]) - comps.begin();
+            if (it.component == 6)
+              bad(it, "component must be one of xx, yy, zz, yz, xz, xy.");
+          }
         else if (it.kind == "l2_error")
           {
             it.body = it.args[0] == "all" ? -1 : discretization.body_index(it.args[0]);
@@ -268,7 +309,7 @@ namespace shard::output
     // 0 sum, 1 max, 2 min (stored negated in maxima), 3 ratio of sums in ratios,
     // 4 root of a mass-weighted mean (numerator and denominator in l2)
     std::vector<int>    mode;
-    std::vector<double> ratios, l2;
+    std::vector<double> ratios, l2, range_parts;
     for (const auto &it : items_)
       {
         double value = 0;
@@ -344,6 +385,27 @@ namespace shard::output
             ratios.insert(ratios.end(), s, s + 4);
             m = 3;
           }
+        else if (it.kind == "kinetic_energy")
+          {
+            for (const auto j : it.nodes)
+              for (unsigned int c = 0; c < 3; ++c)
+                value += 0.5 * mass.local_element(j + c) * v.local_element(j + c) * v.local_element(j + c);
+          }
+        else if (it.kind == "stress_range")
+          {
+            // max - min as two maxima: max of s and max of -s, combined after the reduction.
+            double hi = -std::numeric_limits<double>::max(), lo = hi;
+            for (unsigned int e = 0; e < hex_->n_local_elements(); ++e)
+              if (it.body < 0 || static_cast<int>(hex_->body(e)) == it.body)
+                hi = std::max(hi, hex_->stress(e)[it.component]), lo = std::max(lo, -hex_->stress(e)[it.component]);
+            for (unsigned int i = 0; i < particles_->n_owned(); ++i)
+              if (it.body < 0 || static_cast<int>(particles_->particles().body(i)) == it.body)
+                hi = std::max(hi, particles_->stress(i)[it.component]),
+                lo = std::max(lo, -particles_->stress(i)[it.component]);
+            range_parts.push_back(hi);
+            range_parts.push_back(lo);
+            m = 5;
+          }
         else if (it.kind == "l2_error")
           {
             it.exact->set_time(t);
@@ -364,17 +426,30 @@ namespace shard::output
           }
         mode.push_back(m);
         sums.push_back(m == 0 ? value : 0.);
-        if (m >= 3)
+        if (m >= 3 && m != 5)
           m = 0;
+        if (m == 5)
+          {
+            mode.back() = 5;
+            maxima.push_back(-std::numeric_limits<double>::max());
+            sums.back() = 0;
+            continue;
+          }
         maxima.push_back(m == 0 ? -std::numeric_limits<double>::max() : value);
       }
     Utilities::MPI::sum(sums, comm, sums);
     Utilities::MPI::max(maxima, comm, maxima);
     Utilities::MPI::sum(ratios, comm, ratios);
     Utilities::MPI::sum(l2, comm, l2);
+    Utilities::MPI::max(range_parts, comm, range_parts);
     std::vector<double> out(items_.size());
-    for (unsigned int i = 0, r = 0, e = 0; i < items_.size(); ++i)
-      if (mode[i] == 3)
+    for (unsigned int i = 0, r = 0, e = 0, g = 0; i < items_.size(); ++i)
+      if (mode[i] == 5)
+        {
+          out[i] = range_parts[2 * g] + range_parts[2 * g + 1];
+          ++g;
+        }
+      else if (mode[i] == 3)
         {
           const double *s = &ratios[4 * r++];
           out[i]          = s[3] > 0 ? std::sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]) / s[3] : 0.;
