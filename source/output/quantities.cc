@@ -21,7 +21,8 @@ namespace shard::output
     const std::map<std::string, unsigned int> n_args = {
       {"reaction", 2},       {"max_coordinate", 2}, {"min_coordinate", 2},    {"max_radius", 2},
       {"stress", 4},         {"velocity", 4},       {"max_plastic_strain", 1}, {"odd_even", 1},
-      {"l2_error", 4},       {"kinetic_energy", 4}, {"stress_range", 2}};
+      {"l2_error", 4},       {"kinetic_energy", 4}, {"stress_range", 2},
+      {"mass", 1}};
 
     int
     axis(const std::string &s)
@@ -51,7 +52,8 @@ namespace shard::output
                       "<x|y|z> <from> <to>: sum of m_I |v_I|^2 / 2 over the nodes and particles whose reference "
                       "coordinate along the axis lies in [from, to] (J); stress_range <body|all> "
                       "<xx|yy|zz|yz|xz|xy>: largest minus smallest stress component over the elements and "
-                      "particles (Pa).");
+                      "particles (Pa); mass <body|all>: sum of rho0 V0 over the elements and rho0 V_I over the "
+                      "particles, from their volumes, not from the mass vector (kg).");
     prm.leave_subsection();
     return true;
   }
@@ -79,7 +81,7 @@ namespace shard::output
           {
             error = "entry '" + entry + "': unknown kind '" + it.kind +
                     "'; known: reaction, max_coordinate, min_coordinate, max_radius, stress, velocity, "
-                    "max_plastic_strain, odd_even, l2_error, kinetic_energy, stress_range.";
+                    "max_plastic_strain, odd_even, l2_error, kinetic_energy, stress_range, mass.";
             return {};
           }
         const bool optional_id = it.kind == "max_radius" && it.args.size() == 3;
@@ -210,6 +212,12 @@ namespace shard::output
                     if (x >= range[0] && x <= range[1])
                       it.nodes.push_back(j);
                   }
+          }
+        else if (it.kind == "mass")
+          {
+            it.body = it.args[0] == "all" ? -1 : discretization.body_index(it.args[0]);
+            if (it.args[0] != "all" && it.body < 0)
+              bad(it, "no body named '" + it.args[0] + "'.");
           }
         else if (it.kind == "stress_range")
           {
@@ -390,6 +398,15 @@ namespace shard::output
             for (const auto j : it.nodes)
               for (unsigned int c = 0; c < 3; ++c)
                 value += 0.5 * mass.local_element(j + c) * v.local_element(j + c) * v.local_element(j + c);
+          }
+        else if (it.kind == "mass")
+          {
+            for (unsigned int e = 0; e < hex_->n_local_elements(); ++e)
+              if (it.body < 0 || static_cast<int>(hex_->body(e)) == it.body)
+                value += hex_->material(e).density() * hex_->reference_volume(e);
+            for (unsigned int i = 0; i < particles_->n_owned(); ++i)
+              if (it.body < 0 || static_cast<int>(particles_->particles().body(i)) == it.body)
+                value += particles_->material(i).density() * particles_->particles().volume(i);
           }
         else if (it.kind == "stress_range")
           {

@@ -298,6 +298,7 @@ namespace shard::particles
         SavedParticle p;
         p.volume = particles_->volume(i);
         p.q      = q_[i];
+        p.jacobian = jacobian(i);
         std::copy(&stress_[6 * i], &stress_[6 * i] + 6, p.stress.begin());
         p.state.assign(state(i), state(i) + groups_[group_of_[i]].n_slots);
         out.emplace(particles_->global_id(i), std::move(p));
@@ -326,6 +327,13 @@ namespace shard::particles
       return 0.;
     std::fill(fk_.begin(), fk_.end(), 0.);
     return op_.subtract_residual_force(dk_.data(), fk_.data());
+  }
+
+  double
+  SpgForce::jacobian(const unsigned int i) const
+  {
+    double inv[9];
+    return invert(&F_[9 * i], inv);
   }
 
   double

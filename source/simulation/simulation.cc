@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/base/function.h>
 #include <shard/base/version.h>
+#include <shard/fe/hex_kernel.h>
 #include <shard/simulation/simulation.h>
 
 #include <deal.II/base/mpi.h>
@@ -398,13 +399,13 @@ namespace shard
       {
         char row[512];
         std::snprintf(row, sizeof(row),
-                      "%.10e,%u,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%llu", t_,
+                      "%.16e,%u,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%llu", t_,
                       step_, dt_next_, kinetic, internal, g[2], external, boundary, filter, conversion_energy_,
                       energy_error_, g[5], g[6], g[7], conversion_.n_converted());
         history_ << row;
         for (const double x : q)
           {
-            std::snprintf(row, sizeof(row), ",%.10e", x);
+            std::snprintf(row, sizeof(row), ",%.16e", x);
             history_ << row;
           }
         history_ << "\n";
@@ -427,16 +428,21 @@ namespace shard
 
   namespace
   {
-    /// Elastic energy density sigma : C^-1 : sigma / 2 = p^2 / (2K) + s : s / (4G) (J/m^3).
+    /**
+     * Stored elastic energy density estimate (J per reference m^3): K (ln J)^2 / 2 from the
+     * relative volume (the pressure of the elastic and von Mises models is K ln J) plus
+     * s : s / (4 G) from the stored deviatoric stress; K, G of the undamaged material.
+     */
     double
-    elastic_energy_density(const materials::Material &m, const double *s)
+    elastic_energy_density(const materials::Material &m, const double *s, const double jacobian)
     {
       const auto   kg = m.elastic_moduli();
       const double p  = (s[0] + s[1] + s[2]) / 3.;
       double       ss = 0;
       for (unsigned int c = 0; c < 3; ++c)
         ss += (s[c] - p) * (s[c] - p) + 2 * s[c + 3] * s[c + 3];
-      return p * p / (2 * kg[0]) + ss / (4 * kg[1]);
+      const double lj = std::log(jacobian);
+      return 0.5 * kg[0] * lj * lj + ss / (4 * kg[1]);
     }
 
     /// Moves the owned values of @p v to the layout of @p partitioner (ghosts zero).
@@ -483,7 +489,16 @@ namespace shard
         for (unsigned int a = 0; a < 8; ++a)
           for (unsigned int k = 0; k < n_values; ++k)
             acc[k / 3].local_element(hex_.node(e, a) + k % 3) += w * values[k];
-        energy[0] += elastic_energy_density(m, hex_.stress(e)) * hex_.reference_volume(e);
+        double x[8][3], B[8][3];
+        for (unsigned int a = 0; a < 8; ++a)
+          for (unsigned int c = 0; c < 3; ++c)
+            {
+              const unsigned int j = hex_.node(e, a) + c;
+              x[a][c]              = discretization_.reference_positions().local_element(j) + d_.local_element(j);
+            }
+        const double jacobian = fe::hex_volume_gradient(x, B) / hex_.reference_volume(e);
+
+        energy[0] += elastic_energy_density(m, hex_.stress(e), jacobian) * hex_.reference_volume(e);
       }
     for (auto &a : acc)
       a.compress(VectorOperation::add);
@@ -507,7 +522,8 @@ namespace shard
 
     // History of every owned particle: kept, or the volume average of what it had and what
     // its newly converted cells bring, h = (V_old h_old + sum V_e/8 h_e) / V_new.
-    std::vector<double> mixed(n_values);
+    std::vector<double>       mixed(n_values);
+    std::vector<unsigned int> received;
     for (unsigned int i = 0; i < spg_.n_owned(); ++i)
       {
         const unsigned int j  = particles_.local_dof(i);
@@ -533,18 +549,21 @@ namespace shard
               mixed[1 + c] += v_old * it->second.stress[c];
             for (unsigned int k = 0; k < it->second.state.size(); ++k)
               mixed[7 + k] += v_old * it->second.state[k];
-            energy[0] += elastic_energy_density(m, it->second.stress.data()) * v_old;
+            energy[0] += elastic_energy_density(m, it->second.stress.data(), it->second.jacobian) * v_old;
           }
         for (unsigned int k = 1; k < n_values; ++k)
           mixed[k] /= v_new;
         spg_.set_state(i, &mixed[1], &mixed[7], it != saved.end() ? it->second.q : 0.);
-        energy[1] += elastic_energy_density(m, &mixed[1]) * v_new;
+        received.push_back(i);
       }
 
-    // Kinematics of the new stencils from the current coefficients.
+    // Kinematics of the new stencils from the current coefficients, then the energy after.
     d_.update_ghost_values();
     v_.update_ghost_values();
     stabilization_energy_ = spg_.reset_deformation(d_);
+    for (const unsigned int i : received)
+      energy[1] += elastic_energy_density(spg_.material(i), spg_.stress(i), spg_.jacobian(i)) * particles_.volume(i);
+
     physical_step_        = ~0u;
     quantities_.prepare(discretization_, hex_, conditions_, spg_);
     stable_dt_ = std::min(stable_dt_, spg_.current_stable_dt());

@@ -10,7 +10,8 @@ A case is a directory holding <case>.prm, or a path <case>.prm; beside the .prm 
   <case>.checks      JSON list of derived checks on the history:
                        {"name", "type", "column", ..., "expected", "rel" | "abs", "source"}
                      types: mean (from, to), first_crossing (level), last_crossing (level),
-                            max_abs (optional from), final, max, min; optional "scale" multiplies the value.
+                            max_abs (optional from), final, max, min, growth (from, to),
+                            relative_drift (max |y - y(0)| / |y(0)|); optional "scale" multiplies the value.
   <case>.summary     JSON list of checks on summary.json: {"key", "expected", "rel" | "abs"};
                      a key "a/b" looks into object a (run: "results/x"; material-test:
                      "final_state/effective plastic strain").
@@ -147,6 +148,9 @@ def check_case(args, outdir, failures):
                 value = min(ys)
             elif kind == "final":
                 value = ys[-1]
+            elif kind == "relative_drift":
+                # Largest |y - y(0)| / |y(0)| over the run (conserved quantities).
+                value = max(abs(y - ys[0]) for y in ys) / abs(ys[0])
             elif kind == "growth":
                 # Largest |y| after "from" over the largest |y| up to "to" (no growth: <= 1).
                 late = max(abs(y) for t, y in zip(ts, ys) if t >= c["from"])

@@ -65,6 +65,8 @@ namespace shard::particles
       double volume = 0;
       /// Bulk viscosity of the last step (Pa).
       double q = 0;
+      /// det F of the last force evaluation (1).
+      double jacobian = 1;
       /// Cauchy stress (Pa).
       std::array<double, 6> stress{};
       /// History slots (material order).
@@ -88,6 +90,10 @@ namespace shard::particles
      */
     double
     reset_deformation(const mesh::Vector &d);
+
+    /// det F of owned particle @p i at the last force evaluation or reset_deformation() (1).
+    double
+    jacobian(unsigned int i) const;
 
     /// Stable step estimate from the stored F and the initial wave speed (s). @note Collective.
     double
