@@ -5,7 +5,8 @@
 Usage: plot_convergence.py CSV PNG [MARKDOWN]
 Left panel: L2 displacement error against element size h, log-log, with the least-squares slope
 over the three finest sizes of each method. Right panel: the same error against the wall time of
-the time loop (solid; set-up and output excluded) and of the whole run (dashed). With MARKDOWN,
+the time loop (solid; set-up and output excluded) and of the whole run (dashed, crosses). Each
+method keeps its colour and marker (STYLES) whichever methods the CSV holds. With MARKDOWN,
 the text between <!-- CONVERGENCE BEGIN --> and <!-- CONVERGENCE END --> is replaced by the
 tables of the runs and of the fitted rates.
 """
@@ -21,7 +22,11 @@ import matplotlib.pyplot as plt
 LABELS = {"fe": "FE (hexahedra, viscous hourglass 0.1)",
           "particles": "particles (default: residual 0.1, bulk viscosity 0.06/1.5)",
           "particles_r0": "particles, residual coefficient 0",
-          "particles_q0": "particles, no bulk viscosity"}
+          "particles_q0": "particles, no bulk viscosity",
+          "hybrid": "hybrid (particles in the central 1/8)"}
+# colour and marker of each method (both panels); methods not listed take the next free colour and "o"
+STYLES = {"fe": ("C0", "o"), "particles": ("C1", "o"), "particles_r0": ("C2", "o"), "particles_q0": ("C3", "o"),
+          "hybrid": ("C4", "s")}
 
 
 def slope(xs, ys):
@@ -38,9 +43,10 @@ def main():
     runs = {m: sorted((r for r in rows if r["method"] == m), key=lambda r: -float(r["h_m"])) for m in methods}
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 5))
     rates = {}
-    for k, m in enumerate(methods):
+    spare = iter(f"C{k}" for k in range(10) if f"C{k}" not in {c for c, _ in STYLES.values()})
+    for m in methods:
         rs = runs[m]
-        color = f"C{k}"
+        color, marker = STYLES[m] if m in STYLES else (next(spare, "k"), "o")
         h = [1e3 * float(r["h_m"]) for r in rs]
         e = [float(r["relative_error"]) for r in rs]
         loop = [max(float(r["loop_time_s"]), 1e-4) for r in rs]
@@ -49,7 +55,7 @@ def main():
         p_h = slope(h[fine], e[fine]) if len(rs) >= 3 else float("nan")
         p_t = slope(loop[fine], e[fine]) if len(rs) >= 3 else float("nan")
         rates[m] = (p_h, p_t)
-        ax1.loglog(h, e, "o-", color=color, label=f"{LABELS.get(m, m)}: slope {p_h:.2f}")
+        ax1.loglog(h, e, marker + "-", color=color, label=f"{LABELS.get(m, m)}: slope {p_h:.2f}")
         if len(rs) >= 3:
             # fitted line through the three finest points
             lx = [math.log(x) for x in h[fine]]
@@ -57,7 +63,7 @@ def main():
             c = sum(ly) / 3 - p_h * sum(lx) / 3
             xs = [h[-3] * 1.3, h[-1] / 1.3]
             ax1.loglog(xs, [math.exp(c) * x ** p_h for x in xs], ":", color=color, lw=1)
-        ax2.loglog(loop, e, "o-", color=color, label=f"{LABELS.get(m, m)}: slope {p_t:.2f}")
+        ax2.loglog(loop, e, marker + "-", color=color, label=f"{LABELS.get(m, m)}: slope {p_t:.2f}")
         ax2.loglog(wall, e, "x--", color=color, lw=0.8, alpha=0.6)
     # reference slope 2
     h_all = sorted({1e3 * float(r["h_m"]) for r in rows})
@@ -82,7 +88,11 @@ def main():
 
     if len(sys.argv) > 3:
         lines = ["Measured with `contrib/convergence` (1 MPI rank; relative error = L2 error / (U sqrt(3/8)),",
-                 "the RMS of the exact displacement at its peak; time loop = wall time without set-up and output).", "",
+                 "the RMS of the exact displacement at its peak; time loop = wall time without set-up and output)."]
+        if "hybrid" in methods:
+            lines += ["hybrid: FE cube whose elements with centre in [25, 75]^3 mm (the central 1/8) are particles from",
+                      "the set-up; nodes counts FE nodes and particles together (interface points once)."]
+        lines += ["",
                  "| method | cells per edge | h (mm) | nodes | steps | L2 error (m) | relative error | local rate | time loop (s) | whole run (s) |",
                  "|---|---|---|---|---|---|---|---|---|---|"]
         for m in methods:

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 #include <stdexcept>
 
 namespace shard::coupling
@@ -193,9 +194,20 @@ namespace shard::coupling
           }
         catch (const std::invalid_argument &e)
           {
-            const std::string what = e.what();
-            const std::string key  = what.substr(0, what.find(':'));
-            source.fail("G - Conversion/" + name + "/" + key, "", what.substr(what.find(':') + 2) + ".");
+            const std::string what  = e.what();
+            const std::string key   = what.substr(0, what.find(':'));
+            const auto        value = [](const double x) {
+              std::ostringstream o;
+              o << x;
+              return o.str();
+            };
+            const std::string text = key == "lower corner" ? r.lower_corner :
+                                     key == "upper corner" ? r.upper_corner :
+                                     key == "centre"       ? r.centre :
+                                     key == "direction"    ? r.direction :
+                                     key == "radius"       ? value(r.radius) :
+                                                             value(r.length);
+            source.fail("G - Conversion/" + name + "/" + key, text, what.substr(what.find(':') + 2) + ".");
           }
       }
   }

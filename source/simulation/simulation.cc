@@ -144,7 +144,6 @@ namespace shard
   {
     const auto         start = Clock::now();
     const unsigned int rank  = Utilities::MPI::this_mpi_process(comm_);
-    const auto         n_elements = discretization_.n_elements();
     RunResult          result{"completed", "", 0};
 
     if (rank == 0)
@@ -222,6 +221,7 @@ namespace shard
               f_ = 0;
               try
                 {
+                  element_steps_ += hex_.n_local_elements();
                   const auto r = hex_.add_internal_forces(d_, v_, dt_, step_, f_);
                   stable_dt_   = r.stable_dt;
                   internal_energy_ += r.internal_energy;
@@ -238,6 +238,7 @@ namespace shard
                 PhaseTimer timer(phase_time_, 6);
                 try
                   {
+                    particle_steps_ += spg_.n_owned();
                     const auto r = spg_.add_internal_forces(d_, dt_, step_, f_);
                     stable_dt_   = std::min(stable_dt_, r.stable_dt);
                     internal_energy_ += r.internal_energy;
@@ -328,6 +329,11 @@ namespace shard
         result = {"unstable", e.what(), 3};
       }
     history_.close();
+    // Element-steps and particle-steps actually computed (conversion changes the counts).
+    {
+      const double local[2] = {element_steps_, particle_steps_};
+      Utilities::MPI::sum(ArrayView<const double>(local, 2), comm_, ArrayView<double>(work_steps_.data(), 2));
+    }
     write_summary(result, std::chrono::duration<double>(Clock::now() - start).count());
 
     if (rank == 0)
@@ -343,13 +349,13 @@ namespace shard
           if (max_time[p] > 0)
             std::fprintf(stderr, "  %-18s %10.3f s  %5.1f %%\n", phase_names[p], max_time[p],
                          p == 0 ? 0. : 100. * max_time[p] / loop);
-        if (phase_time_[5] > 0 && hex_.n_local_elements() > 0)
+        const double element_steps = work_steps_[0], particle_steps = work_steps_[1];
+        if (max_time[5] > 0 && element_steps > 0)
           std::fprintf(stderr, "  FE force: %.3g element-steps/s (%.3f us per element-step)\n",
-                       double(n_elements) * step_ / max_time[5], 1e6 * max_time[5] / (double(n_elements) * step_));
-        const double n_particles = particles_.n_global();
-        if (max_time[6] > 0 && n_particles > 0)
+                       element_steps / max_time[5], 1e6 * max_time[5] / element_steps);
+        if (max_time[6] > 0 && particle_steps > 0)
           std::fprintf(stderr, "  particle force: %.3g particle-steps/s (%.3f us per particle-step)\n",
-                       n_particles * step_ / max_time[6], 1e6 * max_time[6] / (n_particles * step_));
+                       particle_steps / max_time[6], 1e6 * max_time[6] / particle_steps);
       }
     else
       {
@@ -610,7 +616,6 @@ namespace shard
     const double peak_rss = Utilities::MPI::max(1024. * usage.ru_maxrss, comm_);
     if (Utilities::MPI::this_mpi_process(comm_) != 0)
       return;
-    const double       n_elements = discretization_.n_elements();
     std::ostringstream j;
     j << "{\n";
     j << "  \"shard_version\": \"" << version_string << " (" << git_description << ")\",\n";
@@ -632,13 +637,14 @@ namespace shard
     j << "  \"n_mpi_ranks\": " << Utilities::MPI::n_mpi_processes(comm_) << ",\n";
     j << "  \"energy_error\": " << number(energy_error_) << ",\n";
     j << "  \"max_abs_energy_error\": " << number(max_energy_error_) << ",\n";
-    j << "  \"element_steps_per_s\": " << number(max_time[5] > 0 ? n_elements * step_ / max_time[5] : 0) << ",\n";
-    j << "  \"us_per_element_step\": " << number(step_ > 0 ? 1e6 * max_time[5] / (n_elements * step_) : 0)
+    const double element_steps = work_steps_[0], particle_steps = work_steps_[1];
+    j << "  \"element_steps_per_s\": " << number(max_time[5] > 0 ? element_steps / max_time[5] : 0) << ",\n";
+    j << "  \"us_per_element_step\": " << number(element_steps > 0 ? 1e6 * max_time[5] / element_steps : 0)
       << ",\n";
     const double n_particles = particles_.n_global();
-    j << "  \"particle_steps_per_s\": " << number(max_time[6] > 0 ? n_particles * step_ / max_time[6] : 0) << ",\n";
-    j << "  \"us_per_particle_step\": "
-      << number(step_ > 0 && n_particles > 0 ? 1e6 * max_time[6] / (n_particles * step_) : 0) << ",\n";
+    j << "  \"particle_steps_per_s\": " << number(max_time[6] > 0 ? particle_steps / max_time[6] : 0) << ",\n";
+    j << "  \"us_per_particle_step\": " << number(particle_steps > 0 ? 1e6 * max_time[6] / particle_steps : 0)
+      << ",\n";
     j << "  \"particle_bytes\": " << number(memory[0]) << ",\n";
     j << "  \"bytes_per_particle\": " << number(n_particles > 0 ? memory[0] / n_particles : 0) << ",\n";
     j << "  \"n_dofs\": " << d_.size() << ",\n";

@@ -40,6 +40,12 @@ namespace shard::output
    *   an exact one, sqrt(sum_I m_I |u_I - u(X_I, t)|^2 / sum_I m_I) over the nodes (particles) of
    *   the body (m); m_I the lumped mass, u_I the physical displacement for particle bodies, the
    *   three muparser expressions of x, y, z (reference coordinates) and t contain no spaces.
+   * - `kinetic_energy <body|all> <x|y|z> <from> <to>`: sum of m_I |v_I|^2 / 2 over the nodes and
+   *   particles whose reference coordinate along the axis lies in [from, to] (J).
+   * - `stress_range <body|all> <xx|yy|zz|yz|xz|xy>`: largest minus smallest stress component over
+   *   the elements and particles (Pa; the patch test).
+   * - `mass <body|all>`: sum of rho0 V0 over the elements and rho0 V_I over the particles, from
+   *   their volumes, not from the mass vector (kg; conversion must keep it exact).
    */
   class Quantities : public base::ParameterOwner
   {

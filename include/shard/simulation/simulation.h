@@ -128,6 +128,10 @@ namespace shard
     std::vector<double> q_final_, q_min_, q_max_;
     std::ofstream      history_;
     std::array<double, 11> phase_time_{};
+    /// Element and particle force evaluations on this rank (summed over steps), and their
+    /// sums over ranks after the run, for the per-step rates.
+    double                element_steps_ = 0, particle_steps_ = 0;
+    std::array<double, 2> work_steps_{};
 
     void
     record();
