@@ -34,7 +34,7 @@ namespace shard::coupling
     /// box, cylinder, sphere, half-space or body (every element of the body).
     std::string shape = "box";
     /// Box: corners "x, y, z" (m).
-    std::string lower_corner = "0, 0, 0", upper_corner = "0, 0, 0";
+    std::string lower_corner = "0, 0, 0", upper_corner = "0.1, 0.1, 0.1";
     /// Sphere: centre; cylinder: centre of the start face; half-space: a point on the plane (m).
     std::string centre = "0, 0, 0";
     /// Sphere and cylinder radius (m).
