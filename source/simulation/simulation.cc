@@ -503,7 +503,6 @@ namespace shard
               x[a][c]              = discretization_.reference_positions().local_element(j) + d_.local_element(j);
             }
         const double jacobian = fe::hex_volume_gradient(x, B) / hex_.reference_volume(e);
-
         energy[0] += elastic_energy_density(m, hex_.stress(e), jacobian) * hex_.reference_volume(e);
       }
     for (auto &a : acc)
@@ -570,20 +569,21 @@ namespace shard
     for (const unsigned int i : received)
       energy[1] += elastic_energy_density(spg_.material(i), spg_.stress(i), spg_.jacobian(i)) * particles_.volume(i);
 
-    physical_step_        = ~0u;
+    physical_step_ = ~0u;
     quantities_.prepare(discretization_, hex_, conditions_, spg_);
     stable_dt_ = std::min(stable_dt_, spg_.current_stable_dt());
 
     Utilities::MPI::sum(ArrayView<const double>(energy, 2), comm_, ArrayView<double>(energy, 2));
     const double elastic = energy[1] - energy[0];
+    const double change  = elastic + Utilities::MPI::sum(stabilization_energy_, comm_) - old_stabilization;
     conversion_elastic_ += Utilities::MPI::this_mpi_process(comm_) == 0 ? elastic : 0.;
-    conversion_energy_ += elastic + Utilities::MPI::sum(stabilization_energy_, comm_) - old_stabilization;
+    conversion_energy_ += change;
     if (Utilities::MPI::this_mpi_process(comm_) == 0)
       std::fprintf(stderr,
                    "step %8u  conversion: %llu cells (%llu converted in all), %llu particles; energy change "
-                   "%.3e J (elastic %.3e J)\n",
-                   step_, added, conversion_.n_converted(), particles_.n_global(),
-                   conversion_energy_, elastic);
+                   "%.3e J (elastic %.3e J), %.3e J in all\n",
+                   step_, added, conversion_.n_converted(), particles_.n_global(), change, elastic,
+                   conversion_energy_);
   }
 
   const mesh::Vector &
