@@ -134,6 +134,12 @@ namespace shard::output
     const auto  bad = [](const Item &it, const std::string &why) {
       throw base::InputError("K - Quantities/quantities: '" + it.name + " = " + it.kind + " ...': " + why);
     };
+    // The first argument names a body or 'all' (-1).
+    const auto body_or_all = [&](Item &it) {
+      it.body = it.args[0] == "all" ? -1 : discretization.body_index(it.args[0]);
+      if (it.args[0] != "all" && it.body < 0)
+        bad(it, "no body named '" + it.args[0] + "'.");
+    };
     for (auto &it : items_)
       {
         if (it.kind == "reaction")
@@ -182,16 +188,12 @@ namespace shard::output
           }
         else if (it.kind == "max_plastic_strain")
           {
-            it.body = it.args[0] == "all" ? -1 : discretization.body_index(it.args[0]);
-            if (it.args[0] != "all" && it.body < 0)
-              bad(it, "no body named '" + it.args[0] + "'.");
+            body_or_all(it);
           }
         else if (it.kind == "kinetic_energy")
           {
-            it.body      = it.args[0] == "all" ? -1 : discretization.body_index(it.args[0]);
+            body_or_all(it);
             it.component = axis(it.args[1]);
-            if (it.args[0] != "all" && it.body < 0)
-              bad(it, "no body named '" + it.args[0] + "'.");
             if (it.component < 0)
               bad(it, "axis must be x, y or z.");
             double range[2];
@@ -215,15 +217,11 @@ namespace shard::output
           }
         else if (it.kind == "mass")
           {
-            it.body = it.args[0] == "all" ? -1 : discretization.body_index(it.args[0]);
-            if (it.args[0] != "all" && it.body < 0)
-              bad(it, "no body named '" + it.args[0] + "'.");
+            body_or_all(it);
           }
         else if (it.kind == "stress_range")
           {
-            it.body = it.args[0] == "all" ? -1 : discretization.body_index(it.args[0]);
-            if (it.args[0] != "all" && it.body < 0)
-              bad(it, "no body named '" + it.args[0] + "'.");
+            body_or_all(it);
             const std::vector<std::string> comps = {"xx", "yy", "zz", "yz", "xz", "xy"};
             it.component = std::find(comps.begin(), comps.end(), it.args[1]) - comps.begin();
             if (it.component == 6)
@@ -231,9 +229,7 @@ namespace shard::output
           }
         else if (it.kind == "l2_error")
           {
-            it.body = it.args[0] == "all" ? -1 : discretization.body_index(it.args[0]);
-            if (it.args[0] != "all" && it.body < 0)
-              bad(it, "no body named '" + it.args[0] + "'.");
+            body_or_all(it);
             // Bodies never share nodes, so the owned nodes of all bodies count each node once.
             for (unsigned int k = 0; k < discretization.bodies().size(); ++k)
               if (it.body < 0 || static_cast<int>(k) == it.body)
