@@ -114,6 +114,7 @@ namespace shard
     conditions_.prepare(discretization_);
     output_.prepare(discretization_, hex_, spg_);
     quantities_.prepare(discretization_, hex_, conditions_, spg_);
+    fragments_.prepare(discretization_, hex_, particles_);
 
     for (auto *vec : {&d_, &v_, &v_now_, &f_, &f_ext_, &mass_, &d_phys_})
       discretization_.initialize_vector(*vec);
@@ -178,6 +179,7 @@ namespace shard
     v_now_.update_ghost_values();
     record();
     output_.write(0., physical_displacement(), v_now_);
+    write_fragments();
 
     auto         last_progress   = Clock::now();
     double       next_output     = output_.interval();
@@ -303,6 +305,7 @@ namespace shard
                   d_.update_ghost_values();
                   v_now_.update_ghost_values();
                   output_.write(t_, physical_displacement(), v_now_);
+                  write_fragments();
                   while (next_output <= t_ * (1 + 1e-12) && output_.interval() > 0)
                     next_output += output_.interval();
                 }
@@ -329,6 +332,30 @@ namespace shard
         result = {"unstable", e.what(), 3};
       }
     history_.close();
+    // Fragment statistics of the last output: by mass, largest first, with the cumulative
+    // mass fraction and the speed (doc/manual/hybrid.md, "Fragments").
+    if (rank == 0 && !last_fragments_.empty())
+      {
+        auto sorted = last_fragments_;
+        std::stable_sort(sorted.begin(), sorted.end(),
+                         [](const output::Fragment &a, const output::Fragment &b) { return a.mass > b.mass; });
+        double total = 0;
+        for (const auto &f : sorted)
+          total += f.mass;
+        std::ofstream out(output_.directory() + "/fragment_statistics.csv");
+        out << "time,rank_by_mass,fragment,nodes,particles,mass,cumulative_mass_fraction,speed,kinetic_energy\n";
+        double cumulative = 0;
+        char   row[512];
+        for (std::size_t k = 0; k < sorted.size(); ++k)
+          {
+            const auto &f = sorted[k];
+            cumulative += f.mass;
+            std::snprintf(row, sizeof(row), "%.10e,%zu,%llu,%llu,%llu,%.16e,%.16e,%.10e,%.10e\n", last_fragments_time_,
+                          k + 1, f.id, f.nodes, f.particles, f.mass, cumulative / total,
+                          std::hypot(f.velocity[0], f.velocity[1], f.velocity[2]), f.kinetic_energy);
+            out << row;
+          }
+      }
     // Element-steps and particle-steps actually computed (conversion changes the counts).
     {
       const double local[2] = {element_steps_, particle_steps_};
@@ -571,6 +598,7 @@ namespace shard
 
     physical_step_ = ~0u;
     quantities_.prepare(discretization_, hex_, conditions_, spg_);
+    fragments_.prepare(discretization_, hex_, particles_);
     stable_dt_ = std::min(stable_dt_, spg_.current_stable_dt());
 
     Utilities::MPI::sum(ArrayView<const double>(energy, 2), comm_, ArrayView<double>(energy, 2));
@@ -596,6 +624,31 @@ namespace shard
     spg_.physical_displacement(d_phys_);
     d_phys_.update_ghost_values();
     return d_phys_;
+  }
+
+  void
+  Simulation::write_fragments()
+  {
+    if (!particles_.active())
+      return;
+    last_fragments_      = fragments_.compute(physical_displacement(), v_now_, mass_);
+    last_fragments_time_ = t_;
+    if (Utilities::MPI::this_mpi_process(comm_) != 0)
+      return;
+    const std::string path  = output_.directory() + "/fragments.csv";
+    const bool        first = !fragments_started_;
+    std::ofstream     out(path, first ? std::ios::trunc : std::ios::app);
+    if (first)
+      out << "time,fragment,nodes,particles,mass,x,y,z,vx,vy,vz,kinetic_energy\n";
+    fragments_started_ = true;
+    char row[512];
+    for (const auto &f : last_fragments_)
+      {
+        std::snprintf(row, sizeof(row), "%.10e,%llu,%llu,%llu,%.16e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e,%.10e\n", t_,
+                      f.id, f.nodes, f.particles, f.mass, f.centre[0], f.centre[1], f.centre[2], f.velocity[0],
+                      f.velocity[1], f.velocity[2], f.kinetic_energy);
+        out << row;
+      }
   }
 
   void
@@ -633,6 +686,15 @@ namespace shard
     j << "  \"n_converted_elements\": " << conversion_.n_converted() << ",\n";
     j << "  \"conversion_events\": " << conversion_.n_events() << ",\n";
     j << "  \"conversion_energy\": " << number(conversion_energy_) << ",\n";
+    if (!last_fragments_.empty())
+      {
+        double total = 0, largest = 0;
+        for (const auto &f : last_fragments_)
+          total += f.mass, largest = std::max(largest, f.mass);
+        j << "  \"n_fragments\": " << last_fragments_.size() << ",\n";
+        j << "  \"fragment_mass_total\": " << number(total) << ",\n";
+        j << "  \"largest_fragment_mass\": " << number(largest) << ",\n";
+      }
     j << "  \"correction_iterations\": " << spg_.correction_solve().iterations << ",\n";
     j << "  \"n_mpi_ranks\": " << Utilities::MPI::n_mpi_processes(comm_) << ",\n";
     j << "  \"energy_error\": " << number(energy_error_) << ",\n";

@@ -21,7 +21,7 @@ case, whose history.csv has the same 'time' column and is checked the same way);
 is the key that sets the output directory (default `J - Output/directory`; for material-test
 `M - Material test/output directory`). The progress lines are switched off only for `run`.
 --np N runs with mpiexec; --compare-ranks A B runs at both counts and requires the
-histories to agree to --rel (default 1e-8) relative to max(|a|, |b|, scale), where the scale of
+histories (and fragments.csv, when written) to agree to --rel (default 1e-8) relative to max(|a|, |b|, scale), where the scale of
 an energy column is the largest energy term of the run, of a momentum component the largest
 component, of the energy error 1, and of any other column its largest magnitude.
 --expect-exit K and --expect-message REGEX check a run that must fail.
@@ -211,6 +211,37 @@ def compare_histories(a, b, rel, failures, case):
           + (f" ({worst[1][0]} row {worst[1][1]})" if worst[1] else ""))
 
 
+def compare_fragments(a, b, rel, failures, case):
+    """fragments.csv (when the run writes one) must agree too: same fragments, same rows,
+    each column to rel of its largest magnitude."""
+    fa, fb = os.path.join(a, "fragments.csv"), os.path.join(b, "fragments.csv")
+    if not os.path.exists(fa) and not os.path.exists(fb):
+        return
+    if not (os.path.exists(fa) and os.path.exists(fb)):
+        failures.append(f"{case}: fragments.csv written at one rank count only")
+        return
+    ha, da = read_csv(fa)
+    hb, db = read_csv(fb)
+    if ha != hb or len(da) != len(db):
+        failures.append(f"{case}: fragments.csv differ in shape ({len(da)} vs {len(db)} rows)")
+        return
+    # Coordinates share one scale, as do velocity components (a centre on a symmetry plane is
+    # round-off around 0).
+    groups = [["x", "y", "z"], ["vx", "vy", "vz"]]
+    worst = 0.0
+    for j, name in enumerate(ha):
+        group = next((g for g in groups if name in g), [name])
+        idx = [ha.index(n) for n in group if n in ha]
+        scale = max([abs(r[i]) for r in da + db for i in idx] + [1e-300])
+        for k, (ra, rb) in enumerate(zip(da, db)):
+            d = abs(ra[j] - rb[j]) / scale
+            worst = max(worst, d)
+            if d > rel:
+                failures.append(f"{case}: fragments.csv column {name} row {k + 1}: {ra[j]!r} vs {rb[j]!r}")
+                return
+    print(f"ok    {case}: fragments agree ({len(da)} rows), largest relative difference {worst:.3g}")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--shard", required=True)
@@ -242,6 +273,7 @@ def main():
                     raise SystemExit(f"{case}: run at {n} ranks failed ({p.returncode}): {' '.join(cmd)}")
                 dirs.append(out)
             compare_histories(dirs[0], dirs[1], args.rel, failures, case)
+            compare_fragments(dirs[0], dirs[1], args.rel, failures, case)
         else:
             out = os.path.join(tmp, "out")
             p, cmd = run_shard(args, args.np, out)

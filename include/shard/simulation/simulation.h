@@ -13,6 +13,7 @@
 #include <shard/materials/material_library.h>
 #include <shard/mesh/discretization.h>
 #include <shard/output/field_output.h>
+#include <shard/output/fragments.h>
 #include <shard/output/quantities.h>
 #include <shard/particles/particle_set.h>
 #include <shard/particles/spg_force.h>
@@ -107,6 +108,7 @@ namespace shard
     time::CentralDifference      integrator_;
     output::FieldOutput          output_;
     output::Quantities           quantities_;
+    output::Fragments            fragments_;
 
     // State vectors, all with the one layout of Discretization.
     mesh::Vector d_, v_, v_now_, f_, f_ext_, mass_, d_phys_;
@@ -149,5 +151,13 @@ namespace shard
     physical_displacement();
     void
     write_summary(const RunResult &result, double wall_time) const;
+    /// With particles: appends the fragments now to fragments.csv and keeps them for the
+    /// statistics at the end (doc/manual/hybrid.md, "Fragments"). @note Collective.
+    void
+    write_fragments();
+    /// The fragments of the last write_fragments() (empty without particles).
+    std::vector<output::Fragment> last_fragments_;
+    double                        last_fragments_time_ = -1;
+    bool                          fragments_started_   = false;
   };
 } // namespace shard

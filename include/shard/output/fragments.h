@@ -1,0 +1,73 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+/**
+ * @file fragments.h
+ * @brief Fragments: connected components of the nodes through intact elements and particle
+ *        bonds, with mass, centre of mass, velocity and kinetic energy (issue 6, first part).
+ * @ingroup output
+ */
+#pragma once
+
+#include <shard/fe/hex_force.h>
+#include <shard/mesh/discretization.h>
+#include <shard/particles/particle_set.h>
+
+#include <array>
+#include <string>
+#include <vector>
+
+namespace shard::output
+{
+  /// One fragment: a connected set of nodes and particles.
+  struct Fragment
+  {
+    /// Smallest global node (particle) id in the fragment: the same at any number of ranks.
+    unsigned long long id = 0;
+    /// Nodes (FE nodes and particles) and, of them, particles.
+    unsigned long long nodes = 0, particles = 0;
+    /// Mass (kg), centre of mass (m), velocity = momentum / mass (m/s), kinetic energy (J).
+    double                mass = 0;
+    std::array<double, 3> centre{}, velocity{};
+    double                kinetic_energy = 0;
+  };
+
+  /**
+   * @brief Finds the fragments: two nodes are connected when an intact element holds both or
+   * when one particle lies in the RK stencil of the other (a bond). Bodies never share nodes,
+   * so without failure every connected body is one fragment. Labels are the smallest global
+   * node id, found by min-propagation over the edges through the ghost layer until no label
+   * changes, so 1 and 2 ranks give the same fragments.
+   */
+  class Fragments
+  {
+  public:
+    /// Collects the edges of the owned elements and particle rows. Call again after a rebuild.
+    void
+    prepare(const mesh::Discretization &discretization, const fe::HexForce &hex,
+            const particles::ParticleSet &particles);
+
+    /**
+     * @brief The fragments, sorted by id, on every rank.
+     * @param d physical displacement (ghost values not needed)
+     * @param v velocity
+     * @param mass lumped mass
+     * @note Collective.
+     */
+    std::vector<Fragment>
+    compute(const mesh::Vector &d, const mesh::Vector &v, const mesh::Vector &mass) const;
+
+    /// Label-propagation sweeps of the last compute() (diagnostic).
+    unsigned int
+    sweeps() const
+    {
+      return sweeps_;
+    }
+
+  private:
+    const mesh::Discretization *discretization_ = nullptr;
+    /// Pairs of local first-DOF indices (owned or ghost) that are connected.
+    std::vector<std::pair<unsigned int, unsigned int>> edges_;
+    /// 1 for owned nodes that are particles (by first local DOF / 3).
+    std::vector<unsigned char> particle_;
+    mutable unsigned int       sweeps_ = 0;
+  };
+} // namespace shard::output
