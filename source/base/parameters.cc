@@ -2,9 +2,11 @@
 #include <shard/base/parameters.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
 #include <regex>
 #include <set>
+#include <stdexcept>
 #include <sstream>
 
 namespace shard::base
@@ -103,6 +105,19 @@ namespace shard::base
         if (!seen.insert(name).second)
           source.fail(path, text, "'" + name + "' appears twice.");
       }
+  }
+
+  void
+  write_file_atomically(const std::string &path, const std::string &content)
+  {
+    const std::string tmp = path + ".tmp";
+    {
+      std::ofstream out(tmp);
+      out << content;
+      if (!out)
+        throw std::runtime_error("cannot write '" + tmp + "'");
+    }
+    std::filesystem::rename(tmp, path);
   }
 
   std::array<double, 3>

@@ -80,19 +80,6 @@ namespace shard::driver
       return out + "'";
     }
 
-    /// Writes @p content to @p path through a temporary file and a rename.
-    void
-    write_file_atomically(const std::string &path, const std::string &content)
-    {
-      const std::string tmp = path + ".tmp";
-      {
-        std::ofstream out(tmp);
-        out << content;
-        if (!out)
-          throw std::runtime_error("cannot write '" + tmp + "'");
-      }
-      std::filesystem::rename(tmp, path);
-    }
 
     /**
      * Parses "a, b c" (commas and/or white space) into numbers.
@@ -745,7 +732,7 @@ namespace shard::driver
     j << "  \"files\": {\"history\": \"" << base::json_escape(dir) << "/history.csv\", \"parameters\": \""
       << base::json_escape(dir) << "/parameters.prm\"}\n";
     j << "}\n";
-    write_file_atomically(dir + "/summary.json", j.str());
+    base::write_file_atomically(dir + "/summary.json", j.str());
 
     log << "material-test: " << material_ << " (" << material.model_name() << "), " << path_
         << (control_.path == LoadPath::triaxial_compression ? ", confinement " + to_text(confinement_ * 1e-6) + " MPa"

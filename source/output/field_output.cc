@@ -15,18 +15,6 @@ namespace shard::output
 {
   using namespace dealii;
 
-  void
-  write_file_atomically(const std::string &path, const std::string &content)
-  {
-    const std::string tmp = path + ".tmp";
-    {
-      std::ofstream out(tmp);
-      out << content;
-      if (!out)
-        throw std::runtime_error("cannot write '" + tmp + "'");
-    }
-    std::filesystem::rename(tmp, path);
-  }
 
   bool
   FieldOutput::declare_parameters(ParameterHandler &prm)
@@ -146,7 +134,7 @@ namespace shard::output
         for (const auto &[t, file] : particle_records_)
           pvd << "  <DataSet timestep=\"" << t << "\" group=\"\" part=\"1\" file=\"" << file << "\"/>\n";
         pvd << "</Collection>\n</VTKFile>\n";
-        write_file_atomically(pvd_path(), pvd.str());
+        base::write_file_atomically(pvd_path(), pvd.str());
       }
   }
 
@@ -208,7 +196,7 @@ namespace shard::output
     scalar_field("interface", [&](const unsigned int i) { return set.is_interface(i) ? 1. : 0.; });
     scalar_field("mpi_rank", [&](const unsigned int) { return double(rank); });
     out << "</PointData>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n";
-    write_file_atomically(directory_ + "/" + piece(rank), out.str());
+    base::write_file_atomically(directory_ + "/" + piece(rank), out.str());
 
     if (rank == 0)
       {
@@ -225,14 +213,14 @@ namespace shard::output
         for (unsigned int r = 0; r < n_ranks; ++r)
           p << "<Piece Source=\"" << piece(r) << "\"/>\n";
         p << "</PUnstructuredGrid>\n</VTKFile>\n";
-        write_file_atomically(directory_ + "/" + stem + ".pvtu", p.str());
+        base::write_file_atomically(directory_ + "/" + stem + ".pvtu", p.str());
       }
     particle_records_.emplace_back(time, stem + ".pvtu");
     if (rank == 0)
       {
         std::ostringstream pvd;
         DataOutBase::write_pvd_record(pvd, particle_records_);
-        write_file_atomically(directory_ + "/particles.pvd", pvd.str());
+        base::write_file_atomically(directory_ + "/particles.pvd", pvd.str());
       }
   }
 } // namespace shard::output

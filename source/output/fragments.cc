@@ -43,8 +43,7 @@ namespace shard::output
       label.local_element(j) = static_cast<double>(pt.local_to_global(j) / 3);
     // Min-propagation: every edge takes the smaller label of its ends, owners combine the
     // ghost entries by min, until no owned label changes on any rank.
-    sweeps_ = 0;
-    for (bool changed = true; changed; ++sweeps_)
+    for (bool changed = true; changed;)
       {
         label.update_ghost_values();
         std::vector<double> before(label.begin(), label.begin() + n);

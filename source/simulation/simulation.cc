@@ -728,6 +728,6 @@ namespace shard
       << base::json_escape(output_.pvd_path()) << "\", \"parameters\": \"" << base::json_escape(output_.directory())
       << "/parameters.prm\"}\n";
     j << "}\n";
-    output::write_file_atomically(output_.directory() + "/summary.json", j.str());
+    base::write_file_atomically(output_.directory() + "/summary.json", j.str());
   }
 } // namespace shard

@@ -154,6 +154,11 @@ namespace shard::base
   std::string
   json_escape(const std::string &text);
 
+  /// Writes @p content to @p path through a temporary file and a rename (atomic on POSIX), so
+  /// that a reader never sees a half-written file. Throws std::runtime_error if it cannot write.
+  void
+  write_file_atomically(const std::string &path, const std::string &content);
+
   /// Parses "a, b, c" into three doubles; throws std::invalid_argument otherwise.
   std::array<double, 3>
   parse_point(const std::string &text);

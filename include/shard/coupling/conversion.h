@@ -125,13 +125,6 @@ namespace shard::coupling
       return converted_;
     }
 
-    /// Whether any cell anywhere is converted.
-    bool
-    any_converted() const
-    {
-      return n_converted_ > 0;
-    }
-
     /// Number of converted cells over all ranks.
     unsigned long long
     n_converted() const

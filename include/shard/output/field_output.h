@@ -97,8 +97,4 @@ namespace shard::output
     void
     write_particles(double time, const mesh::Vector &d, const mesh::Vector &v);
   };
-
-  /// Writes @p content to @p path through a temporary file and a rename (atomic on POSIX).
-  void
-  write_file_atomically(const std::string &path, const std::string &content);
 } // namespace shard::output

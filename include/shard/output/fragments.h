@@ -55,19 +55,11 @@ namespace shard::output
     std::vector<Fragment>
     compute(const mesh::Vector &d, const mesh::Vector &v, const mesh::Vector &mass) const;
 
-    /// Label-propagation sweeps of the last compute() (diagnostic).
-    unsigned int
-    sweeps() const
-    {
-      return sweeps_;
-    }
-
   private:
     const mesh::Discretization *discretization_ = nullptr;
     /// Pairs of local first-DOF indices (owned or ghost) that are connected.
     std::vector<std::pair<unsigned int, unsigned int>> edges_;
     /// 1 for owned nodes that are particles (by first local DOF / 3).
     std::vector<unsigned char> particle_;
-    mutable unsigned int       sweeps_ = 0;
   };
 } // namespace shard::output

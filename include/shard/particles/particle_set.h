@@ -96,13 +96,6 @@ namespace shard::particles
       return b < particle_body_.size() && particle_body_[b];
     }
 
-    /// Flags per body (true = particles), for the FE loop to skip those cells.
-    const std::vector<bool> &
-    particle_bodies() const
-    {
-      return particle_body_;
-    }
-
     /// The local stencils (compact K numbering: owned particles first).
     const LocalStencils &
     stencils() const
