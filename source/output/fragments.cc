@@ -14,19 +14,53 @@ namespace shard::output
   Fragments::prepare(const mesh::Discretization &discretization, const fe::HexForce &hex,
                      const particles::ParticleSet &particles)
   {
-    discretization_ = &discretization;
-    edges_.clear();
-    // An intact element connects its eight nodes (a star through its first node suffices).
+    discretization_    = &discretization;
+    const auto     &pt = *discretization.partitioner();
+    const unsigned int n_nodes = (pt.locally_owned_size() + pt.n_ghost_indices()) / 3;
+    std::vector<unsigned int> parent(n_nodes);
+    for (unsigned int k = 0; k < n_nodes; ++k)
+      parent[k] = k;
+    const auto root = [&](unsigned int k) {
+      while (parent[k] != k)
+        k = parent[k] = parent[parent[k]];
+      return k;
+    };
+    const auto join = [&](const unsigned int a, const unsigned int b) {
+      const unsigned int ra = root(a / 3), rb = root(b / 3);
+      if (ra != rb)
+        parent[std::max(ra, rb)] = std::min(ra, rb);
+    };
+    // An intact element connects its eight nodes.
     for (unsigned int e = 0; e < hex.n_local_elements(); ++e)
       for (unsigned int a = 1; a < 8; ++a)
-        edges_.emplace_back(hex.node(e, 0), hex.node(e, a));
+        join(hex.node(e, 0), hex.node(e, a));
     // A particle row connects the particle to the particles of its stencil (its bonds).
     const auto &g = particles.stencils().g;
     for (unsigned int i = 0; i < particles.n_owned(); ++i)
       for (unsigned int k = g.row_offsets[i]; k < g.row_offsets[i + 1]; ++k)
-        if (g.columns[k] != i)
-          edges_.emplace_back(particles.local_dof(i), particles.local_dof(g.columns[k]));
-    particle_.assign(discretization.partitioner()->locally_owned_size() / 3, 0);
+        join(particles.local_dof(i), particles.local_dof(g.columns[k]));
+    // Members grouped by root (counting sort).
+    std::vector<unsigned int> component(n_nodes), count;
+    std::vector<int>          index_of_root(n_nodes, -1);
+    for (unsigned int k = 0; k < n_nodes; ++k)
+      {
+        const unsigned int r = root(k);
+        if (index_of_root[r] < 0)
+          {
+            index_of_root[r] = static_cast<int>(count.size());
+            count.push_back(0);
+          }
+        component[k] = index_of_root[r];
+        ++count[component[k]];
+      }
+    offsets_.assign(count.size() + 1, 0);
+    for (std::size_t c = 0; c < count.size(); ++c)
+      offsets_[c + 1] = offsets_[c] + count[c];
+    members_.resize(n_nodes);
+    std::vector<unsigned int> next(offsets_.begin(), offsets_.end() - 1);
+    for (unsigned int k = 0; k < n_nodes; ++k)
+      members_[next[component[k]]++] = 3 * k;
+    particle_.assign(pt.locally_owned_size() / 3, 0);
     for (unsigned int i = 0; i < particles.n_owned(); ++i)
       particle_[particles.local_dof(i) / 3] = 1;
   }
@@ -41,24 +75,19 @@ namespace shard::output
     discretization_->initialize_vector(label);
     for (unsigned int j = 0; j < n; j += 3)
       label.local_element(j) = static_cast<double>(pt.local_to_global(j) / 3);
-    // Min-propagation: every edge takes the smaller label of its ends, owners combine the
+    // Every local component takes the smallest label of its nodes, the owners combine the
     // ghost entries by min, until no owned label changes on any rank.
     for (bool changed = true; changed;)
       {
         label.update_ghost_values();
         std::vector<double> before(label.begin(), label.begin() + n);
-        for (bool local_change = true; local_change;)
+        for (std::size_t c = 0; c + 1 < offsets_.size(); ++c)
           {
-            local_change = false;
-            for (const auto &[a, b] : edges_)
-              {
-                double &la = label.local_element(a), &lb = label.local_element(b);
-                if (la != lb)
-                  {
-                    la = lb = std::min(la, lb);
-                    local_change = true;
-                  }
-              }
+            double smallest = label.local_element(members_[offsets_[c]]);
+            for (unsigned int k = offsets_[c] + 1; k < offsets_[c + 1]; ++k)
+              smallest = std::min(smallest, label.local_element(members_[k]));
+            for (unsigned int k = offsets_[c]; k < offsets_[c + 1]; ++k)
+              label.local_element(members_[k]) = smallest;
           }
         label.compress(VectorOperation::min);
         bool mine = false;

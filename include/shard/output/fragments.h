@@ -33,9 +33,11 @@ namespace shard::output
   /**
    * @brief Finds the fragments: two nodes are connected when an intact element holds both or
    * when one particle lies in the RK stencil of the other (a bond). Bodies never share nodes,
-   * so without failure every connected body is one fragment. Labels are the smallest global
-   * node id, found by min-propagation over the edges through the ghost layer until no label
-   * changes, so 1 and 2 ranks give the same fragments.
+   * so without failure every connected body is one fragment. prepare() joins the owned and
+   * ghost nodes of this rank into local components (union-find over the edges); compute()
+   * gives every local component the smallest global node id among its nodes and lets the
+   * owners combine ghost labels by min, until no label changes on any rank. So 1 and 2 ranks
+   * give the same fragments, and a sweep costs one pass over the nodes.
    */
   class Fragments
   {
@@ -57,8 +59,9 @@ namespace shard::output
 
   private:
     const mesh::Discretization *discretization_ = nullptr;
-    /// Pairs of local first-DOF indices (owned or ghost) that are connected.
-    std::vector<std::pair<unsigned int, unsigned int>> edges_;
+    /// Local components: first local DOF of every owned or ghost node, grouped by component
+    /// (members of component c at [offsets_[c], offsets_[c + 1])).
+    std::vector<unsigned int> members_, offsets_;
     /// 1 for owned nodes that are particles (by first local DOF / 3).
     std::vector<unsigned char> particle_;
   };
