@@ -38,7 +38,8 @@ namespace shard::output
     const auto &g = particles.stencils().g;
     for (unsigned int i = 0; i < particles.n_owned(); ++i)
       for (unsigned int k = g.row_offsets[i]; k < g.row_offsets[i + 1]; ++k)
-        join(particles.local_dof(i), particles.local_dof(g.columns[k]));
+        if (particles.g_entry_intact(k))
+          join(particles.local_dof(i), particles.local_dof(g.columns[k]));
     // Members grouped by root (counting sort).
     std::vector<unsigned int> component(n_nodes), count;
     std::vector<int>          index_of_root(n_nodes, -1);
@@ -60,6 +61,17 @@ namespace shard::output
     std::vector<unsigned int> next(offsets_.begin(), offsets_.end() - 1);
     for (unsigned int k = 0; k < n_nodes; ++k)
       members_[next[component[k]]++] = 3 * k;
+    // Fragment ids: the coarse-mesh vertex index, the same at any number of ranks (every cell
+    // is a coarse cell, and the coarse mesh is the same on every rank), unlike DoF numbers.
+    node_id_.assign(pt.locally_owned_size() / 3, 0);
+    for (const auto &cell : discretization.dof_handler().active_cell_iterators())
+      if (cell->is_locally_owned())
+        for (const unsigned int v : cell->vertex_indices())
+          {
+            const auto g = cell->vertex_dof_index(v, 0);
+            if (pt.in_local_range(g))
+              node_id_[pt.global_to_local(g) / 3] = cell->vertex_index(v);
+          }
     particle_.assign(pt.locally_owned_size() / 3, 0);
     for (unsigned int i = 0; i < particles.n_owned(); ++i)
       particle_[particles.local_dof(i) / 3] = 1;
@@ -74,7 +86,7 @@ namespace shard::output
     mesh::Vector       label;
     discretization_->initialize_vector(label);
     for (unsigned int j = 0; j < n; j += 3)
-      label.local_element(j) = static_cast<double>(pt.local_to_global(j) / 3);
+      label.local_element(j) = static_cast<double>(node_id_[j / 3]);
     // Every local component takes the smallest label of its nodes, the owners combine the
     // ghost entries by min, until no owned label changes on any rank.
     for (bool changed = true; changed;)

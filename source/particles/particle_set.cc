@@ -6,7 +6,9 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <iterator>
 #include <map>
+#include <unordered_map>
 #include <stdexcept>
 #include <cmath>
 #include <iostream>
@@ -306,6 +308,26 @@ namespace shard::particles
       local_dof_[k] =
         np.global_to_local(3 * static_cast<types::global_dof_index>(table[stencils_.cloud_index[k]].row[f_id]));
 
+    // Compact arrays for rebuilding rows after bonds break; bonds broken before this rebuild
+    // (conversion during the run) stay broken.
+    compact_id_.resize(stencils_.n_k);
+    compact_position_.resize(stencils_.n_k);
+    compact_radius_.resize(stencils_.n_k);
+    for (unsigned int k = 0; k < stencils_.n_k; ++k)
+      {
+        const unsigned int p = stencils_.cloud_index[k];
+        compact_id_[k]       = static_cast<unsigned long long>(table[p].row[f_id]);
+        compact_position_[k] = cloud.position[p];
+        for (unsigned int c = 0; c < 3; ++c)
+          compact_radius_[k][c] = rk_.dilation * cloud.spacing[p][c];
+      }
+    a_identity_.resize(stencils_.n_j);
+    for (unsigned int j = 0; j < stencils_.n_j; ++j)
+      a_identity_[j] = cloud.interpolating[stencils_.cloud_index[j]];
+    a_intact_.assign(stencils_.a.n_entries(), 1);
+    g_intact_.assign(stencils_.g.n_entries(), 1);
+    rebuild_broken_rows();
+
     const unsigned int n = stencils_.n_i;
     volume_.resize(n);
     area_.resize(3 * n);
@@ -367,12 +389,167 @@ namespace shard::particles
     std::copy(gradients.begin(), gradients.end(), stencils_.g.grad.begin());
   }
 
+  void
+  ParticleSet::mark_broken(const std::vector<Bond> &bonds, const std::vector<unsigned long long> &free_ids,
+                           std::vector<unsigned int> &a_rows, std::vector<unsigned int> &g_rows)
+  {
+    if (!free_ids.empty())
+      {
+        const auto is_free = [&](const unsigned int k) {
+          return std::binary_search(free_ids.begin(), free_ids.end(), compact_id_[k]);
+        };
+        for (const bool is_g : {false, true})
+          {
+            const Stencil &s      = is_g ? stencils_.g : stencils_.a;
+            auto          &intact = is_g ? g_intact_ : a_intact_;
+            auto          &rows   = is_g ? g_rows : a_rows;
+            for (unsigned int r = 0; r < s.n_rows(); ++r)
+              {
+                if (!is_g && a_identity_[r])
+                  continue;
+                const bool row_free = is_free(r);
+                for (unsigned int e = s.row_offsets[r]; e < s.row_offsets[r + 1]; ++e)
+                  if (s.columns[e] != r && (row_free || is_free(s.columns[e])))
+                    {
+                      intact[e] = 0;
+                      rows.push_back(r);
+                    }
+              }
+          }
+      }
+    constexpr unsigned int none = ~0u;
+    std::unordered_map<unsigned long long, unsigned int> compact;
+    compact.reserve(compact_id_.size());
+    for (unsigned int k = 0; k < compact_id_.size(); ++k)
+      compact.emplace(compact_id_[k], k);
+    const auto find = [&](const unsigned long long id) {
+      const auto it = compact.find(id);
+      return it == compact.end() ? none : it->second;
+    };
+    // Clears the entry of column @p column in row @p row of @p s, if there is one.
+    const auto clear = [](const Stencil &s, std::vector<unsigned char> &intact, const unsigned int row,
+                          const unsigned int column, std::vector<unsigned int> &rows) {
+      for (unsigned int e = s.row_offsets[row]; e < s.row_offsets[row + 1]; ++e)
+        if (s.columns[e] == column)
+          {
+            intact[e] = 0;
+            rows.push_back(row);
+          }
+    };
+    for (const auto &[p, q] : bonds)
+      {
+        const unsigned int cp = find(p), cq = find(q);
+        if (cp == none || cq == none)
+          continue;
+        for (const auto &[row, column] : {std::make_pair(cp, cq), std::make_pair(cq, cp)})
+          {
+            if (row < stencils_.n_i && column < stencils_.n_j)
+              clear(stencils_.g, g_intact_, row, column, g_rows);
+            if (row < stencils_.n_j && !a_identity_[row])
+              clear(stencils_.a, a_intact_, row, column, a_rows);
+          }
+      }
+    for (auto *rows : {&a_rows, &g_rows})
+      {
+        std::sort(rows->begin(), rows->end());
+        rows->erase(std::unique(rows->begin(), rows->end()), rows->end());
+      }
+  }
+
+  void
+  ParticleSet::rebuild_rows(const std::vector<unsigned int> &a_rows, const std::vector<unsigned int> &g_rows)
+  {
+    for (const bool is_g : {false, true})
+      {
+        const auto &rows   = is_g ? g_rows : a_rows;
+        Stencil    &s      = is_g ? stencils_.g : stencils_.a;
+        const auto &intact = is_g ? g_intact_ : a_intact_;
+        if (rows.empty())
+          continue;
+        CsrPattern          pattern;
+        std::vector<Point3> points;
+        for (const unsigned int r : rows)
+          {
+            points.push_back(compact_position_[r]);
+            for (unsigned int e = s.row_offsets[r]; e < s.row_offsets[r + 1]; ++e)
+              if (intact[e])
+                pattern.columns.push_back(s.columns[e]);
+            pattern.row_offsets.push_back(pattern.columns.size());
+          }
+        // Rows that lost bonds may be far worse conditioned than any row of the intact body;
+        // below the failure condition limit they use Shepard functions (doc/manual/failure.md).
+        RkParameters rk  = rk_;
+        rk.rcond_limit   = std::max(rk_.rcond_limit, broken_rcond_limit_);
+        const Stencil fresh = build_rk_stencil(points, compact_position_, compact_radius_, pattern, rk);
+        for (unsigned int k = 0; k < rows.size(); ++k)
+          {
+            const unsigned int r = rows[k];
+            unsigned int       t = fresh.row_offsets[k];
+            for (unsigned int e = s.row_offsets[r]; e < s.row_offsets[r + 1]; ++e)
+              {
+                const bool keep = intact[e] != 0;
+                s.psi[e]        = keep ? fresh.psi[t] : 0.;
+                if (is_g)
+                  for (unsigned int c = 0; c < 3; ++c)
+                    s.grad[3 * e + c] = keep ? fresh.grad[3 * t + c] : 0.;
+                t += keep;
+              }
+            s.fallback[r] = fresh.fallback[k];
+            s.rcond[r]    = fresh.rcond[k];
+          }
+      }
+  }
+
+  unsigned int
+  ParticleSet::break_bonds(const std::vector<Bond> &bonds, const std::vector<unsigned long long> &free_ids)
+  {
+    // Only what is new: merged into the remembered lists, then marked and rebuilt.
+    const auto fresh_of = [](auto list, auto &known) {
+      std::sort(list.begin(), list.end());
+      list.erase(std::unique(list.begin(), list.end()), list.end());
+      decltype(list) fresh, merged;
+      std::set_difference(list.begin(), list.end(), known.begin(), known.end(), std::back_inserter(fresh));
+      std::merge(known.begin(), known.end(), fresh.begin(), fresh.end(), std::back_inserter(merged));
+      known.swap(merged);
+      return fresh;
+    };
+    const auto new_bonds = fresh_of(bonds, broken_);
+    const auto new_free  = fresh_of(free_ids, free_);
+    if (new_bonds.empty() && new_free.empty())
+      return 0;
+    std::vector<unsigned int> a_rows, g_rows;
+    mark_broken(new_bonds, new_free, a_rows, g_rows);
+    rebuild_rows(a_rows, g_rows);
+    return a_rows.size() + g_rows.size();
+  }
+
+  void
+  ParticleSet::rebuild_broken_rows()
+  {
+    if (broken_.empty() && free_.empty())
+      return;
+    std::vector<unsigned int> a_rows, g_rows;
+    mark_broken(broken_, free_, a_rows, g_rows);
+    rebuild_rows(a_rows, g_rows);
+  }
+
+  unsigned int
+  ParticleSet::intact_bonds(const unsigned int i) const
+  {
+    unsigned int n = 0;
+    for (unsigned int e = stencils_.g.row_offsets[i]; e < stencils_.g.row_offsets[i + 1]; ++e)
+      n += g_intact_[e] && stencils_.g.columns[e] != i;
+    return n;
+  }
+
   std::size_t
   ParticleSet::memory_consumption() const
   {
     const auto bytes = [](const auto &v) { return v.capacity() * sizeof(v[0]); };
     return sizeof(*this) - sizeof(stencils_) + stencils_.memory_consumption() + particle_body_.capacity() / 8 +
            bytes(local_dof_) + bytes(volume_) + bytes(area_) + bytes(spacing_) + bytes(position_) + bytes(body_) +
-           bytes(global_id_) + interface_.capacity() / 8 + bytes(component_);
+           bytes(global_id_) + interface_.capacity() / 8 + bytes(component_) + bytes(compact_id_) +
+           bytes(compact_position_) + bytes(compact_radius_) + bytes(a_identity_) + bytes(a_intact_) +
+           bytes(g_intact_) + bytes(broken_) + bytes(free_);
   }
 } // namespace shard::particles

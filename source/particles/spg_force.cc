@@ -287,6 +287,8 @@ namespace shard::particles
                 << " iterations, defect " << solve.initial_defect << " -> " << solve.final_defect
                 << "); the Galerkin patch test holds only to that level.\n";
     particles.replace_gradients(correction.corrected_gradients(lambda.data()));
+    // Rows with broken bonds keep their plain RK gradients (doc/manual/failure.md).
+    particles.rebuild_broken_rows();
   }
 
   std::map<unsigned long long, SpgForce::SavedParticle>
@@ -327,6 +329,39 @@ namespace shard::particles
       return 0.;
     std::fill(fk_.begin(), fk_.end(), 0.);
     return op_.subtract_residual_force(dk_.data(), fk_.data());
+  }
+
+  double
+  SpgForce::refresh_forces(const mesh::Vector &d, mesh::Vector &delta)
+  {
+    if (!active_)
+      return 0.;
+    const std::vector<double> old = fk_;
+    gather(d, dk_);
+    op_.displacement(dk_.data(), u_.data());
+    op_.deformation_gradient(u_.data(), F_.data());
+    // V P = V J (sigma - q I) F^-T from the stored stress and bulk viscosity.
+    for (unsigned int i = 0; i < n_owned(); ++i)
+      {
+        double       Fi[9];
+        const double J   = invert(&F_[9 * i], Fi);
+        const double *sg = &stress_[6 * i];
+        const double q   = q_[i];
+        const double s[3][3] = {{sg[0] - q, sg[5], sg[4]}, {sg[5], sg[1] - q, sg[3]}, {sg[4], sg[3], sg[2] - q}};
+        const double scale   = particles_->volume(i) * J;
+        double      *vp      = &VP_[9 * i];
+        for (unsigned int a = 0; a < 3; ++a)
+          for (unsigned int b = 0; b < 3; ++b)
+            vp[3 * a + b] = scale * (s[a][0] * Fi[3 * b] + s[a][1] * Fi[3 * b + 1] + s[a][2] * Fi[3 * b + 2]);
+      }
+    std::fill(fk_.begin(), fk_.end(), 0.);
+    op_.subtract_internal_force(VP_.data(), fk_.data());
+    const double w =
+      options_.stabilization == Stabilization::residual ? op_.subtract_residual_force(dk_.data(), fk_.data()) : 0.;
+    for (unsigned int k = 0; k < particles_->stencils().n_k; ++k)
+      for (unsigned int c = 0; c < 3; ++c)
+        delta.local_element(particles_->local_dof(k) + c) += fk_[3 * k + c] - old[3 * k + c];
+    return w;
   }
 
   double

@@ -62,6 +62,7 @@ namespace shard
   Simulation::Simulation(MPI_Comm comm)
     : comm_(comm)
     , discretization_(comm)
+    , bonds_(materials_)
   {}
 
   bool
@@ -85,7 +86,7 @@ namespace shard
   {
     source_ = source;
     base::read_parameters(prm_,
-                          {this, &discretization_, &materials_, &particles_, &conversion_, &hex_, &spg_, &conditions_,
+                          {this, &discretization_, &materials_, &particles_, &bonds_, &conversion_, &hex_, &spg_, &conditions_,
                            &integrator_, &output_, &quantities_},
                           source_);
   }
@@ -111,6 +112,7 @@ namespace shard
     particles_.prepare(discretization_, conversion_.converted_cells(), conditions_.faces(), source_);
     hex_.prepare(discretization_, materials_, conversion_.converted_cells());
     spg_.prepare(discretization_, particles_, materials_);
+    bonds_.prepare(particles_, spg_, source_);
     conditions_.prepare(discretization_);
     output_.prepare(discretization_, hex_, spg_);
     quantities_.prepare(discretization_, hex_, conditions_, spg_);
@@ -151,7 +153,8 @@ namespace shard
       {
         history_.open(output_.directory() + "/history.csv");
         history_ << "time,step,dt,kinetic_energy,internal_energy,hourglass_energy,external_work,boundary_work,"
-                    "filter_work,conversion_energy,energy_error,momentum_x,momentum_y,momentum_z,converted_elements";
+                    "filter_work,conversion_energy,bond_energy,energy_error,momentum_x,momentum_y,momentum_z,"
+                    "converted_elements,broken_bonds,free_particles";
         for (const auto &name : quantities_.names())
           history_ << "," << name;
         history_ << "\n";
@@ -287,6 +290,30 @@ namespace shard
                 convert(to_convert);
                 to_convert.clear();
               }
+            // 4c. Bond failure (collective on check steps), also after the force of this step:
+            // the bonds are judged by this step's values; rows rebuilt, F reset to the new rows.
+            if (bonds_.is_check_step(step_))
+              {
+                PhaseTimer timer(phase_time_, 4);
+                const auto [broken, freed] = bonds_.update(discretization_, particles_, spg_, bond_values_);
+                if (broken + freed > 0)
+                  {
+                    // The kick uses the forces of the new stencils.
+                    f_ext_ = 0;
+                    const double w = spg_.refresh_forces(d_, f_ext_);
+                    f_ext_.compress(VectorOperation::add);
+                    f_ += f_ext_;
+                    // The kick's kinetic energy (product form) sees the force change at once:
+                    // dt/2 (f_new - f_old) . v^{n+1/2}, booked with the bond energy.
+                    for (unsigned int i = 0; i < f_ext_.locally_owned_size(); ++i)
+                      bond_energy_ += 0.5 * dt_ * f_ext_.local_element(i) * v_.local_element(i);
+                    f_ext_ = 0;
+                    conditions_.add_external_forces(t_, f_ext_);
+                    bond_energy_ += w - stabilization_energy_;
+                    stabilization_energy_ = w;
+                    fragments_.prepare(discretization_, hex_, particles_);
+                  }
+              }
             const bool last = t_ >= end * (1 - 1e-12) ||
                               (integrator_.max_steps() > 0 && step_ >= integrator_.max_steps());
             // 9. Kick.
@@ -399,18 +426,19 @@ namespace shard
     // The hourglass column holds the FE hourglass work plus the particle stabilization energy.
     // The internal energy includes the elastic energy changed by conversions; the conversion
     // energy (that change plus the jump of the stabilization energy) counts as a source.
-    const double local[9] = {balance_.kinetic,       internal_energy_ + conversion_elastic_,
-                             hourglass_energy_ + stabilization_energy_,
-                             balance_.external_work, balance_.boundary_work, balance_.momentum[0],
-                             balance_.momentum[1],   balance_.momentum[2],   filter_work_};
-    double       g[9];
-    Utilities::MPI::sum(ArrayView<const double>(local, 9), comm_, ArrayView<double>(g, 9));
+    const double local[10] = {balance_.kinetic,       internal_energy_ + conversion_elastic_,
+                              hourglass_energy_ + stabilization_energy_,
+                              balance_.external_work, balance_.boundary_work, balance_.momentum[0],
+                              balance_.momentum[1],   balance_.momentum[2],   filter_work_, bond_energy_};
+    double       g[10];
+    Utilities::MPI::sum(ArrayView<const double>(local, 10), comm_, ArrayView<double>(g, 10));
     const double kinetic = g[0], internal = g[1] + g[2], external = g[3], boundary = g[4], filter = g[8];
+    const double bond = g[9];
     const double reference = std::max(initial_energy_ + std::abs(external) + std::abs(boundary) + std::abs(filter) +
-                                        std::abs(conversion_energy_),
+                                        std::abs(conversion_energy_) + std::abs(bond),
                                       kinetic);
     energy_error_ = reference > 0 ? (kinetic + internal - initial_energy_ - external - boundary - filter -
-                                     conversion_energy_) /
+                                     conversion_energy_ - bond) /
                                       reference :
                                     0.;
     max_energy_error_ = std::max(max_energy_error_, std::abs(energy_error_));
@@ -432,9 +460,11 @@ namespace shard
       {
         char row[512];
         std::snprintf(row, sizeof(row),
-                      "%.16e,%u,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%llu", t_,
-                      step_, dt_next_, kinetic, internal, g[2], external, boundary, filter, conversion_energy_,
-                      energy_error_, g[5], g[6], g[7], conversion_.n_converted());
+                      "%.16e,%u,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%llu,"
+                      "%llu,%llu",
+                      t_, step_, dt_next_, kinetic, internal, g[2], external, boundary, filter, conversion_energy_,
+                      bond, energy_error_, g[5], g[6], g[7], conversion_.n_converted(), bonds_.n_broken(),
+                      bonds_.n_free());
         history_ << row;
         for (const double x : q)
           {
@@ -551,6 +581,7 @@ namespace shard
           move_to_layout(a, partitioner);
       }
     spg_.prepare(discretization_, particles_, materials_);
+    bonds_.prepare(particles_, spg_, source_);
 
     // History of every owned particle: kept, or the volume average of what it had and what
     // its newly converted cells bring, h = (V_old h_old + sum V_e/8 h_e) / V_new.
@@ -686,6 +717,8 @@ namespace shard
     j << "  \"n_converted_elements\": " << conversion_.n_converted() << ",\n";
     j << "  \"conversion_events\": " << conversion_.n_events() << ",\n";
     j << "  \"conversion_energy\": " << number(conversion_energy_) << ",\n";
+    j << "  \"broken_bonds\": " << bonds_.n_broken() << ",\n";
+    j << "  \"free_particles\": " << bonds_.n_free() << ",\n";
     if (!last_fragments_.empty())
       {
         double total = 0, largest = 0;

@@ -20,7 +20,7 @@ namespace shard::output
   /// One fragment: a connected set of nodes and particles.
   struct Fragment
   {
-    /// Smallest global node (particle) id in the fragment: the same at any number of ranks.
+    /// Smallest coarse-mesh vertex index of the fragment's nodes: the same at any number of ranks.
     unsigned long long id = 0;
     /// Nodes (FE nodes and particles) and, of them, particles.
     unsigned long long nodes = 0, particles = 0;
@@ -35,7 +35,7 @@ namespace shard::output
    * when one particle lies in the RK stencil of the other (a bond). Bodies never share nodes,
    * so without failure every connected body is one fragment. prepare() joins the owned and
    * ghost nodes of this rank into local components (union-find over the edges); compute()
-   * gives every local component the smallest global node id among its nodes and lets the
+   * gives every local component the smallest coarse-mesh vertex index among its nodes and lets the
    * owners combine ghost labels by min, until no label changes on any rank. So 1 and 2 ranks
    * give the same fragments, and a sweep costs one pass over the nodes.
    */
@@ -62,6 +62,8 @@ namespace shard::output
     /// Local components: first local DOF of every owned or ghost node, grouped by component
     /// (members of component c at [offsets_[c], offsets_[c + 1])).
     std::vector<unsigned int> members_, offsets_;
+    /// Coarse-mesh vertex index of every owned node (by first local DOF / 3).
+    std::vector<unsigned int> node_id_;
     /// 1 for owned nodes that are particles (by first local DOF / 3).
     std::vector<unsigned char> particle_;
   };

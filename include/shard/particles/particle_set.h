@@ -191,6 +191,76 @@ namespace shard::particles
     std::size_t
     memory_consumption() const;
 
+    /// A bond between two particles, by global particle id (first < second).
+    using Bond = std::pair<unsigned long long, unsigned long long>;
+
+    /**
+     * @brief Breaks the bonds @p bonds (the same list on every rank) for good: their entries
+     * of A and G are set to zero and every local row that held one is rebuilt from its
+     * surviving bonds (formulation.md section 5: RK with the remaining neighbours, Shepard when
+     * fewer than 4 remain, the identity when only the particle itself remains). Interpolating
+     * A rows stay identities. Rebuilt G rows carry the plain RK gradients (the consistent
+     * correction is not re-solved; doc/manual/failure.md). The particles @p free_ids (global
+     * ids, the same list on every rank) lose every bond, in whichever row it is stored. Bonds and
+     * free particles are remembered, so a rebuild by prepare() (conversion) never restores them.
+     * Not collective.
+     * @return the number of local rows rebuilt
+     */
+    unsigned int
+    break_bonds(const std::vector<Bond> &bonds, const std::vector<unsigned long long> &free_ids = {});
+
+    /// Rows rebuilt after bonds broke use Shepard functions below this reciprocal condition
+    /// number of the scaled moment matrix (or the RK limit, if larger). Unit: 1.
+    void
+    set_broken_condition_limit(double limit)
+    {
+      broken_rcond_limit_ = limit;
+    }
+
+    /// Free particles so far (global ids, sorted; identical on every rank).
+    const std::vector<unsigned long long> &
+    free_particles() const
+    {
+      return free_;
+    }
+
+    /// Reference position of compact coefficient @p k.
+    const Point3 &
+    compact_position(unsigned int k) const
+    {
+      return compact_position_[k];
+    }
+
+    /// Rebuilds every local row that holds a broken bond again (after a new gradient
+    /// correction has overwritten G). Not collective.
+    void
+    rebuild_broken_rows();
+
+    /// Every bond broken so far, sorted (identical on every rank).
+    const std::vector<Bond> &
+    broken_bonds() const
+    {
+      return broken_;
+    }
+
+    /// Whether entry @p e of the G stencil (LocalStencils::g) is an intact bond.
+    bool
+    g_entry_intact(std::size_t e) const
+    {
+      return g_intact_[e] != 0;
+    }
+
+    /// Global particle id of compact coefficient @p k (rows I and J included).
+    unsigned long long
+    compact_id(unsigned int k) const
+    {
+      return compact_id_[k];
+    }
+
+    /// Number of intact bonds of owned particle @p i to other particles (G row, itself excluded).
+    unsigned int
+    intact_bonds(unsigned int i) const;
+
   private:
     std::string              body_names_text_;
     std::vector<std::string> body_names_;
@@ -209,6 +279,26 @@ namespace shard::particles
     std::vector<bool>               interface_;
     std::vector<unsigned int>       component_;
     unsigned int                    n_components_ = 0;
+    /// Per compact coefficient K: global id, reference position, support radii.
+    std::vector<unsigned long long> compact_id_;
+    std::vector<Point3>             compact_position_, compact_radius_;
+    /// Per A row: 1 when it is an identity (interpolating) row.
+    std::vector<unsigned char> a_identity_;
+    /// Per entry of A and G: 1 while the bond is intact.
+    std::vector<unsigned char> a_intact_, g_intact_;
+    /// Broken bonds (global ids, sorted), kept across rebuilds.
+    std::vector<Bond> broken_;
+    /// Free particles (global ids, sorted), kept across rebuilds.
+    std::vector<unsigned long long> free_;
+    double                          broken_rcond_limit_ = 0;
+    /// Marks the entries of the local rows that hold a bond of @p bonds or a particle of
+    /// @p free_ids (sorted); returns the rows of A and of G that changed.
+    void
+    mark_broken(const std::vector<Bond> &bonds, const std::vector<unsigned long long> &free_ids,
+                std::vector<unsigned int> &a_rows, std::vector<unsigned int> &g_rows);
+    /// Rebuilds the listed rows of A and G from their intact entries.
+    void
+    rebuild_rows(const std::vector<unsigned int> &a_rows, const std::vector<unsigned int> &g_rows);
     unsigned long long              n_global_ = 0;
   };
 } // namespace shard::particles

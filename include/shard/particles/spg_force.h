@@ -91,6 +91,16 @@ namespace shard::particles
     double
     reset_deformation(const mesh::Vector &d);
 
+    /**
+     * @brief After the stencils changed in place (bonds broke at the end of a step): sets F and
+     * u from the current coefficients @p d (ghost values set) like reset_deformation(), and
+     * adds to @p delta (owned and ghost entries; compress(add) afterwards) the change of this
+     * step's particle force, new minus old, with the stored stress. So the kick that follows
+     * uses forces of the new stencils, and the work of the next step matches them.
+     * @return the residual-stabilization energy W_s for @p d with the new stencils (J)
+     */
+    double
+    refresh_forces(const mesh::Vector &d, mesh::Vector &delta);
     /// det F of owned particle @p i at the last force evaluation or reset_deformation() (1).
     double
     jacobian(unsigned int i) const;
@@ -137,6 +147,19 @@ namespace shard::particles
     void
     physical_displacement(mesh::Vector &out) const;
 
+    /// Physical displacements u_J = (A d)_J of the last force evaluation over the rows J of the
+    /// local stencils (owned first, then the first ring; 3 each).
+    const std::vector<double> &
+    displacement_rows() const
+    {
+      return u_;
+    }
+    /// Deformation gradient of owned particle @p i at the last force evaluation (9, row-major).
+    const double *
+    deformation_gradient(unsigned int i) const
+    {
+      return &F_[9 * i];
+    }
     /// Whether there are particles.
     bool
     active() const

@@ -15,6 +15,7 @@
 #include <shard/output/field_output.h>
 #include <shard/output/fragments.h>
 #include <shard/output/quantities.h>
+#include <shard/particles/bond_failure.h>
 #include <shard/particles/particle_set.h>
 #include <shard/particles/spg_force.h>
 #include <shard/time/central_difference.h>
@@ -101,6 +102,7 @@ namespace shard
     mesh::Discretization         discretization_;
     materials::MaterialLibrary   materials_;
     particles::ParticleSet       particles_;
+    particles::BondFailure       bonds_;
     coupling::Conversion         conversion_;
     fe::HexForce                 hex_;
     particles::SpgForce          spg_;
@@ -122,6 +124,11 @@ namespace shard
     double             conversion_energy_ = 0;
     /// Elastic part of conversion_energy_ on this rank (J), included in the internal energy.
     double             conversion_elastic_ = 0;
+    /// Jump of the stabilization energy when bonds break, this rank (J); a source like the
+    /// conversion energy.
+    double             bond_energy_ = 0;
+    /// Work space of the bond tests (normalized failure value and critical stretch per particle).
+    mesh::Vector       bond_values_;
     double             reference_energy_ = 0, initial_energy_ = 0;
     double             t_ = 0, dt_ = 0, dt_next_ = 0, stable_dt_ = 0;
     unsigned int       step_ = 0;

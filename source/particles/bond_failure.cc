@@ -1,0 +1,293 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/particles/bond_failure.h>
+
+#include <deal.II/base/mpi.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace shard::particles
+{
+  using namespace dealii;
+
+  namespace
+  {
+    const char *const criterion_names = "none|plastic strain|scaled damage|principal stress|principal strain";
+
+    BondCriterion
+    criterion_of(const std::string &text)
+    {
+      if (text == "plastic strain")
+        return BondCriterion::plastic_strain;
+      if (text == "scaled damage")
+        return BondCriterion::scaled_damage;
+      if (text == "principal stress")
+        return BondCriterion::principal_stress;
+      if (text == "principal strain")
+        return BondCriterion::principal_strain;
+      return BondCriterion::none;
+    }
+
+    /// Gathers the lists of all ranks into one sorted list without duplicates.
+    template <typename T>
+    std::vector<T>
+    gather_sorted(const MPI_Comm comm, const std::vector<T> &mine)
+    {
+      std::vector<T> all;
+      for (const auto &part : Utilities::MPI::all_gather(comm, mine))
+        all.insert(all.end(), part.begin(), part.end());
+      std::sort(all.begin(), all.end());
+      all.erase(std::unique(all.begin(), all.end()), all.end());
+      return all;
+    }
+  } // namespace
+
+  double
+  largest_eigenvalue(const double *s)
+  {
+    // Trigonometric solution of the characteristic equation of the symmetric tensor.
+    const double p1 = s[3] * s[3] + s[4] * s[4] + s[5] * s[5];
+    const double m  = (s[0] + s[1] + s[2]) / 3.;
+    if (p1 == 0)
+      return std::max({s[0], s[1], s[2]});
+    const double a = s[0] - m, b = s[1] - m, c = s[2] - m;
+    const double p = std::sqrt((a * a + b * b + c * c + 2. * p1) / 6.);
+    // det((S - m I) / p) / 2
+    const double det = a * (b * c - s[3] * s[3]) - s[5] * (s[5] * c - s[3] * s[4]) + s[4] * (s[5] * s[3] - b * s[4]);
+    const double r   = std::clamp(det / (2. * p * p * p), -1., 1.);
+    return m + 2. * p * std::cos(std::acos(r) / 3.);
+  }
+
+  BondFailure::BondFailure(const materials::MaterialLibrary &library)
+    : library_(library)
+  {}
+
+  bool
+  BondFailure::declare_parameters(ParameterHandler &prm)
+  {
+    bool added = false;
+    prm.enter_subsection("E - Particles");
+    prm.enter_subsection("bond failure");
+    if (!declared_)
+      {
+        declared_ = added = true;
+        prm.add_parameter("check interval", check_interval_,
+                          "Steps between two tests of the bonds (after the force of the step). Unit: steps. "
+                          "Range: >= 1.",
+                          Patterns::Integer(1));
+        prm.add_parameter("rule", rule_text_,
+                          "Which particle values of a bond are compared: 'mean' breaks the bond when the mean of "
+                          "the two normalized values q/q_c reaches 1, 'either' when one end reaches its threshold, "
+                          "'both' when both do.",
+                          Patterns::Selection("mean|either|both"));
+        prm.add_parameter("minimum bonds", minimum_bonds_,
+                          "A particle left with fewer intact bonds to other particles becomes a free particle: "
+                          "all its bonds break; it keeps mass, momentum and state and interacts only by contact. "
+                          "Unit: 1. Range: >= 0 (3 keeps linear RK rows possible).",
+                          Patterns::Integer(0));
+        prm.add_parameter("condition limit", condition_limit_,
+                          "A row rebuilt after bonds broke uses Shepard functions (constant consistency, "
+                          "bounded gradients) when the reciprocal condition number of its scaled moment matrix "
+                          "falls below this value. Rows that keep few or one-sided bonds are otherwise far stiffer "
+                          "than the step size allows. Intact bodies have about 0.03 at corners. Unit: 1. "
+                          "Range: 0 to 1.",
+                          Patterns::Double(0, 1));
+      }
+    for (const auto &name : library_.names())
+      {
+        if (declared_materials_.count(name))
+          continue;
+        declared_materials_.insert(name);
+        added    = true;
+        auto &st = settings_[name];
+        prm.enter_subsection(name);
+        prm.add_parameter("criterion", st.criterion_text,
+                          "Particle value that breaks the bonds of particles of this material: effective plastic "
+                          "strain, K&C scaled damage (0 to 2), largest principal stress, largest principal "
+                          "engineering strain; none: only the stretch criterion.",
+                          Patterns::Selection(criterion_names));
+        prm.add_parameter("threshold", st.threshold,
+                          "Critical value q_c of the criterion. Unit: 1 for strains and damage, Pa for stress. "
+                          "Range: > 0 when a criterion is chosen.",
+                          Patterns::Double(0));
+        prm.add_parameter("critical stretch", st.stretch,
+                          "A bond breaks when its stretch |x_J - x_I| / |X_J - X_I| exceeds this value or falls "
+                          "below its inverse. 0 switches the stretch criterion off. Unit: 1. Range: 0 or > 1.",
+                          Patterns::Double(0));
+        prm.leave_subsection();
+      }
+    prm.leave_subsection();
+    prm.leave_subsection();
+    return added;
+  }
+
+  void
+  BondFailure::check_parameters(const base::PrmSource &source) const
+  {
+    const std::string top = "E - Particles/bond failure/";
+    for (const auto &[name, st] : settings_)
+      {
+        if (st.criterion_text != "none" && !(st.threshold > 0))
+          source.fail(top + name + "/threshold", std::to_string(st.threshold),
+                      "> 0 when 'criterion' is '" + st.criterion_text + "'.");
+        if (st.stretch != 0 && !(st.stretch > 1))
+          source.fail(top + name + "/critical stretch", std::to_string(st.stretch), "0 (off) or > 1.");
+      }
+  }
+
+  void
+  BondFailure::prepare(ParticleSet &particles, const SpgForce &spg, const base::PrmSource &source)
+  {
+    particles.set_broken_condition_limit(condition_limit_);
+    rule_ = rule_text_ == "either" ? BondRule::either : rule_text_ == "both" ? BondRule::both : BondRule::mean;
+    const unsigned int n = spg.n_owned();
+    criterion_.assign(n, BondCriterion::none);
+    threshold_.assign(n, 1.);
+    stretch_.assign(n, 0.);
+    slot_.assign(n, -1);
+    value_.assign(n, 0.);
+    bool any = false;
+    for (const auto &[name, st] : settings_)
+      any |= st.criterion_text != "none" || st.stretch > 0;
+    active_ = spg.active() && any;
+    if (!active_)
+      return;
+    std::map<const materials::Material *, const std::string *> names;
+    for (const auto &name : library_.names())
+      names[&library_.get(name)] = &name;
+    for (unsigned int i = 0; i < n; ++i)
+      {
+        const auto        &m    = spg.material(i);
+        const std::string &name = *names.at(&m);
+        const auto        &st   = settings_.at(name);
+        criterion_[i]           = criterion_of(st.criterion_text);
+        threshold_[i]           = st.threshold > 0 ? st.threshold : 1.;
+        stretch_[i]             = st.stretch;
+        const char *slot        = criterion_[i] == BondCriterion::plastic_strain ? materials::slot::plastic_strain :
+                                  criterion_[i] == BondCriterion::scaled_damage  ? "scaled damage" :
+                                                                                   nullptr;
+        if (slot)
+          {
+            const auto slots = m.state_slot_names();
+            const auto it    = std::find(slots.begin(), slots.end(), slot);
+            if (it == slots.end())
+              source.fail("E - Particles/bond failure/" + name + "/criterion", st.criterion_text,
+                          "a criterion the material's model provides (model '" + m.model_name() +
+                            "' has no history slot '" + slot + "').");
+            slot_[i] = static_cast<int>(it - slots.begin());
+          }
+      }
+  }
+
+  double
+  BondFailure::evaluate(const SpgForce &spg, const unsigned int i) const
+  {
+    switch (criterion_[i])
+      {
+        case BondCriterion::plastic_strain:
+        case BondCriterion::scaled_damage:
+          return spg.state(i)[slot_[i]] / threshold_[i];
+        case BondCriterion::principal_stress:
+          return largest_eigenvalue(spg.stress(i)) / threshold_[i];
+        case BondCriterion::principal_strain:
+          {
+            const double *F = spg.deformation_gradient(i);
+            double        C[6];
+            // C = F^T F in (xx, yy, zz, yz, xz, xy).
+            const auto cij = [F](const unsigned int a, const unsigned int b) {
+              return F[a] * F[b] + F[3 + a] * F[3 + b] + F[6 + a] * F[6 + b];
+            };
+            C[0] = cij(0, 0), C[1] = cij(1, 1), C[2] = cij(2, 2), C[3] = cij(1, 2), C[4] = cij(0, 2), C[5] = cij(0, 1);
+            return (std::sqrt(std::max(largest_eigenvalue(C), 0.)) - 1.) / threshold_[i];
+          }
+        case BondCriterion::none:
+          break;
+      }
+    return 0.;
+  }
+
+  std::pair<unsigned long long, unsigned long long>
+  BondFailure::update(const mesh::Discretization &discretization, ParticleSet &particles, const SpgForce &spg,
+                      mesh::Vector &q)
+  {
+    if (!active_)
+      return {0, 0};
+    const MPI_Comm comm = discretization.communicator();
+    if (q.get_partitioner() != discretization.partitioner())
+      discretization.initialize_vector(q);
+    const auto        &st = particles.stencils();
+    const unsigned int n  = st.n_i;
+
+    // 1. Normalized values and critical stretches of the owned particles, exchanged.
+    for (unsigned int i = 0; i < n; ++i)
+      {
+        value_[i] = evaluate(spg, i);
+        q.local_element(particles.local_dof(i))     = value_[i];
+        q.local_element(particles.local_dof(i) + 1) = stretch_[i];
+      }
+    q.update_ghost_values();
+
+    // 2. The bonds of the owned rows.
+    const auto                &u = spg.displacement_rows();
+    std::vector<ParticleSet::Bond> bonds;
+    for (unsigned int i = 0; i < n; ++i)
+      for (unsigned int e = st.g.row_offsets[i]; e < st.g.row_offsets[i + 1]; ++e)
+        {
+          const unsigned int j = st.g.columns[e];
+          if (j == i || !particles.g_entry_intact(e))
+            continue;
+          const double qi = value_[i], qj = q.local_element(particles.local_dof(j));
+          bool         broken = rule_ == BondRule::mean   ? qi + qj >= 2. :
+                                rule_ == BondRule::either ? std::max(qi, qj) >= 1. :
+                                                            std::min(qi, qj) >= 1.;
+          const double si = stretch_[i], sj = q.local_element(particles.local_dof(j) + 1);
+          const double s  = si > 0 && sj > 0 ? std::min(si, sj) : std::max(si, sj);
+          if (!broken && s > 0)
+            {
+              const Point3 &Xi = particles.compact_position(i), &Xj = particles.compact_position(j);
+              double        l0 = 0, l = 0;
+              for (unsigned int c = 0; c < 3; ++c)
+                {
+                  const double r0 = Xj[c] - Xi[c];
+                  const double r  = r0 + u[3 * j + c] - u[3 * i + c];
+                  l0 += r0 * r0;
+                  l += r * r;
+                }
+              const double lambda = std::sqrt(l / l0);
+              broken              = lambda > s || lambda < 1. / s;
+            }
+          if (broken)
+            {
+              const auto a = particles.compact_id(i), b = particles.compact_id(j);
+              bonds.emplace_back(std::min(a, b), std::max(a, b));
+            }
+        }
+
+    // 3. One list on every rank. 4. Free particles, until none is added.
+    unsigned long long n_bonds = 0, n_freed = 0;
+    if (Utilities::MPI::sum(static_cast<unsigned long long>(bonds.size()), comm) > 0)
+      {
+        const auto all  = gather_sorted(comm, bonds);
+        const auto before = particles.broken_bonds().size();
+        particles.break_bonds(all);
+        n_bonds = particles.broken_bonds().size() - before;
+        while (true)
+          {
+            std::vector<unsigned long long> freed;
+            for (unsigned int i = 0; i < n; ++i)
+              if (particles.intact_bonds(i) < minimum_bonds_ &&
+                  !std::binary_search(particles.free_particles().begin(), particles.free_particles().end(),
+                                      particles.compact_id(i)))
+                freed.push_back(particles.compact_id(i));
+            if (Utilities::MPI::sum(static_cast<unsigned long long>(freed.size()), comm) == 0)
+              break;
+            const auto all_freed = gather_sorted(comm, freed);
+            particles.break_bonds({}, all_freed);
+            n_freed += all_freed.size();
+          }
+      }
+    n_broken_ += n_bonds;
+    n_free_ += n_freed;
+    return {n_bonds, n_freed};
+  }
+} // namespace shard::particles
