@@ -13,9 +13,9 @@ positive in compression). The plot DOC_DIR/concrete_cylinder.png is always drawn
 so it can be redrawn without running shard:
 
   build/bin/shard run prm/verification/concrete_cylinder/concrete_cylinder.prm \\
-      --set "J - Output/directory=/tmp/cyl_fe" --set "J - Output/history interval=5"
+      --set "K - Output/directory=/tmp/cyl_fe" --set "K - Output/history interval=5"
   build/bin/shard run prm/verification/concrete_cylinder/concrete_cylinder.prm \\
-      --set "J - Output/directory=/tmp/cyl_particles" --set "J - Output/history interval=5" \\
+      --set "K - Output/directory=/tmp/cyl_particles" --set "K - Output/history interval=5" \\
       --set "E - Particles/bodies=cylinder"
   contrib/utilities/plot_cylinder.py --fe /tmp/cyl_fe --particles /tmp/cyl_particles doc/materials
 """

@@ -13,7 +13,7 @@ namespace shard::bc
   BoundaryConditions::declare_parameters(ParameterHandler &prm)
   {
     bool added = false;
-    prm.enter_subsection("H - Boundary conditions");
+    prm.enter_subsection("I - Boundary conditions");
     if (!names_declared_)
       {
         prm.add_parameter("condition names", names_text_,
@@ -58,7 +58,7 @@ namespace shard::bc
   void
   BoundaryConditions::check_parameters(const base::PrmSource &source) const
   {
-    const std::string top = "H - Boundary conditions/";
+    const std::string top = "I - Boundary conditions/";
     base::check_names(source, top + "condition names", names_text_, names_, true);
     for (const auto &name : names_)
       {
@@ -121,7 +121,7 @@ namespace shard::bc
         const auto &c    = *params_.at(name);
         const int   body = discretization.body_index(c.body);
         if (body < 0)
-          throw base::InputError("H - Boundary conditions/" + name + "/body = " + c.body +
+          throw base::InputError("I - Boundary conditions/" + name + "/body = " + c.body +
                                  ": no such body in 'B - Mesh/body names'.");
         Active a;
         a.p = &c;

@@ -22,7 +22,7 @@ namespace shard::output
     if (declared_)
       return false;
     declared_ = true;
-    prm.enter_subsection("J - Output");
+    prm.enter_subsection("K - Output");
     prm.add_parameter("directory", directory_,
                       "Output directory (created if missing); relative paths are relative to the "
                       "working directory.");
@@ -43,7 +43,7 @@ namespace shard::output
   FieldOutput::check_parameters(const base::PrmSource &source) const
   {
     if (directory_.empty())
-      source.fail("J - Output/directory", "", "must not be empty.");
+      source.fail("K - Output/directory", "", "must not be empty.");
   }
 
   void
@@ -60,7 +60,7 @@ namespace shard::output
         std::error_code ec;
         std::filesystem::create_directories(directory_, ec);
         if (ec || !std::filesystem::is_directory(directory_))
-          throw base::InputError("J - Output/directory = " + directory_ + ": cannot create the directory (" +
+          throw base::InputError("K - Output/directory = " + directory_ + ": cannot create the directory (" +
                                  ec.message() + ").");
       }
     MPI_Barrier(discretization.communicator());

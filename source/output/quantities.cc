@@ -22,7 +22,7 @@ namespace shard::output
       {"reaction", 2},       {"max_coordinate", 2}, {"min_coordinate", 2},    {"max_radius", 2},
       {"stress", 4},         {"velocity", 4},       {"max_plastic_strain", 1}, {"odd_even", 1},
       {"l2_error", 4},       {"kinetic_energy", 4}, {"stress_range", 2},
-      {"mass", 1}};
+      {"mass", 1},           {"mean_velocity", 2}};
 
     int
     axis(const std::string &s)
@@ -37,7 +37,7 @@ namespace shard::output
     if (declared_)
       return false;
     declared_ = true;
-    prm.enter_subsection("K - Quantities");
+    prm.enter_subsection("L - Quantities");
     prm.add_parameter("quantities", text_,
                       "Columns added to history.csv: entries 'name = kind arguments' separated by ';'. "
                       "Kinds: reaction <condition> <x|y|z|n>; max_coordinate <body> <x|y|z>; "
@@ -53,7 +53,9 @@ namespace shard::output
                       "coordinate along the axis lies in [from, to] (J); stress_range <body|all> "
                       "<xx|yy|zz|yz|xz|xy>: largest minus smallest stress component over the elements and "
                       "particles (Pa); mass <body|all>: sum of rho0 V0 over the elements and rho0 V_I over the "
-                      "particles, from their volumes, not from the mass vector (kg).");
+                      "particles, from their volumes, not from the mass vector (kg); mean_velocity <body|all> <x|y|z>: "
+                      "sum_I m_I v_I / sum_I m_I over the nodes and particles of the body, the velocity of its "
+                      "centre of mass (m/s).");
     prm.leave_subsection();
     return true;
   }
@@ -117,7 +119,7 @@ namespace shard::output
     std::string error;
     parse(error);
     if (!error.empty())
-      source.fail("K - Quantities/quantities", text_, error);
+      source.fail("L - Quantities/quantities", text_, error);
   }
 
   void
@@ -132,7 +134,7 @@ namespace shard::output
     items_          = parse(error);
     const auto &X   = discretization.reference_positions();
     const auto  bad = [](const Item &it, const std::string &why) {
-      throw base::InputError("K - Quantities/quantities: '" + it.name + " = " + it.kind + " ...': " + why);
+      throw base::InputError("L - Quantities/quantities: '" + it.name + " = " + it.kind + " ...': " + why);
     };
     // The first argument names a body or 'all' (-1).
     const auto body_or_all = [&](Item &it) {
@@ -227,9 +229,11 @@ namespace shard::output
             if (it.component == 6)
               bad(it, "component must be one of xx, yy, zz, yz, xz, xy.");
           }
-        else if (it.kind == "l2_error")
+        else if (it.kind == "l2_error" || it.kind == "mean_velocity")
           {
             body_or_all(it);
+            if (it.kind == "mean_velocity" && (it.component = axis(it.args[1])) < 0)
+              bad(it, "axis must be x, y or z.");
             // Bodies never share nodes, so the owned nodes of all bodies count each node once.
             for (unsigned int k = 0; k < discretization.bodies().size(); ++k)
               if (it.body < 0 || static_cast<int>(k) == it.body)
@@ -314,6 +318,7 @@ namespace shard::output
     // 4 root of a mass-weighted mean (numerator and denominator in l2)
     std::vector<int>    mode;
     std::vector<double> ratios, l2, range_parts;
+    std::vector<bool>   l2_mean; // per l2 entry: a mean (mean_velocity) instead of an RMS (l2_error)
     for (const auto &it : items_)
       {
         double value = 0;
@@ -419,6 +424,17 @@ namespace shard::output
             range_parts.push_back(lo);
             m = 5;
           }
+        else if (it.kind == "mean_velocity")
+          {
+            double s[2] = {0, 0};
+            for (const auto j : it.nodes)
+              {
+                s[0] += mass.local_element(j) * v.local_element(j + it.component);
+                s[1] += mass.local_element(j);
+              }
+            l2.insert(l2.end(), s, s + 2);
+            m = 6;
+          }
         else if (it.kind == "l2_error")
           {
             it.exact->set_time(t);
@@ -441,6 +457,10 @@ namespace shard::output
         sums.push_back(m == 0 ? value : 0.);
         if (m >= 3 && m != 5)
           m = 0;
+        if (mode.back() == 6)
+          mode.back() = 4, l2_mean.push_back(true);
+        else if (mode.back() == 4)
+          l2_mean.push_back(false);
         if (m == 5)
           {
             mode.back() = 5;
@@ -469,8 +489,9 @@ namespace shard::output
         }
       else if (mode[i] == 4)
         {
-          const double *s = &l2[2 * e++];
-          out[i]          = s[1] > 0 ? std::sqrt(s[0] / s[1]) : 0.;
+          const bool    mean = l2_mean[e];
+          const double *s    = &l2[2 * e++];
+          out[i]             = s[1] > 0 ? (mean ? s[0] / s[1] : std::sqrt(s[0] / s[1])) : 0.;
         }
       else
         out[i] = mode[i] == 0 ? sums[i] : mode[i] == 1 ? maxima[i] : -maxima[i];

@@ -86,7 +86,7 @@ namespace shard
   {
     source_ = source;
     base::read_parameters(prm_,
-                          {this, &discretization_, &materials_, &particles_, &bonds_, &conversion_, &hex_, &spg_, &conditions_,
+                          {this, &discretization_, &materials_, &particles_, &bonds_, &conversion_, &contact_, &hex_, &spg_, &conditions_,
                            &integrator_, &output_, &quantities_},
                           source_);
   }
@@ -124,6 +124,7 @@ namespace shard
     hex_.add_lumped_mass(mass_);
     mass_.compress(VectorOperation::add);
     mass_.update_ghost_values();
+    contact_.prepare(discretization_, materials_, particles_, conversion_.converted_cells(), mass_, source_);
 
     // Initial velocity of each body at its nodes.
     const auto &X = discretization_.reference_positions();
@@ -154,7 +155,7 @@ namespace shard
         history_.open(output_.directory() + "/history.csv");
         history_ << "time,step,dt,kinetic_energy,internal_energy,hourglass_energy,external_work,boundary_work,"
                     "filter_work,conversion_energy,bond_energy,energy_error,momentum_x,momentum_y,momentum_z,"
-                    "converted_elements,broken_bonds,free_particles";
+                    "converted_elements,broken_bonds,free_particles,contact_energy,friction_energy,contact_wall_force";
         for (const auto &name : quantities_.names())
           history_ << "," << name;
         history_ << "\n";
@@ -209,6 +210,7 @@ namespace shard
               PhaseTimer timer(phase_time_, 3);
               d_.update_ghost_values();
               v_.update_ghost_values();
+              contact_.exchange(d_, v_);
               // R1 filter steps smooth the particle coefficients and exchange once more.
               if (spg_.is_filter_step(step_))
                 {
@@ -259,6 +261,13 @@ namespace shard
               PhaseTimer timer(phase_time_, 7);
               f_ext_ = 0;
               conditions_.add_external_forces(t_, f_ext_);
+              // A contact spring acts in series with the element stiffness at its node, so its
+              // limit combines with the force step: 1/dt^2 = 1/dt_force^2 + 1/dt_contact^2.
+              if (contact_.active())
+                {
+                  const double dt_c = contact_.add_forces(step_, dt_, f_).stable_dt;
+                  stable_dt_        = 1. / std::sqrt(1. / (stable_dt_ * stable_dt_) + 1. / (dt_c * dt_c));
+                }
             }
             // 8. Accumulate: ghost force sums to their owners, one reduction of the step candidates.
             {
@@ -426,13 +435,16 @@ namespace shard
     // The hourglass column holds the FE hourglass work plus the particle stabilization energy.
     // The internal energy includes the elastic energy changed by conversions; the conversion
     // energy (that change plus the jump of the stabilization energy) counts as a source.
-    const double local[10] = {balance_.kinetic,       internal_energy_ + conversion_elastic_,
+    const double local[12] = {balance_.kinetic,       internal_energy_ + conversion_elastic_,
                               hourglass_energy_ + stabilization_energy_,
                               balance_.external_work, balance_.boundary_work, balance_.momentum[0],
-                              balance_.momentum[1],   balance_.momentum[2],   filter_work_, bond_energy_};
-    double       g[10];
-    Utilities::MPI::sum(ArrayView<const double>(local, 10), comm_, ArrayView<double>(g, 10));
-    const double kinetic = g[0], internal = g[1] + g[2], external = g[3], boundary = g[4], filter = g[8];
+                              balance_.momentum[1],   balance_.momentum[2],   filter_work_, bond_energy_,
+                              contact_.energy(),      contact_.friction_energy()};
+    double       g[12];
+    Utilities::MPI::sum(ArrayView<const double>(local, 12), comm_, ArrayView<double>(g, 12));
+    // The contact energy (stored in the penalty springs plus dissipated by friction) counts
+    // as internal energy.
+    const double kinetic = g[0], internal = g[1] + g[2] + g[10], external = g[3], boundary = g[4], filter = g[8];
     const double bond = g[9];
     const double reference = std::max(initial_energy_ + std::abs(external) + std::abs(boundary) + std::abs(filter) +
                                         std::abs(conversion_energy_) + std::abs(bond),
@@ -458,13 +470,13 @@ namespace shard
 
     if (Utilities::MPI::this_mpi_process(comm_) == 0)
       {
-        char row[512];
+        char row[1024];
         std::snprintf(row, sizeof(row),
                       "%.16e,%u,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%llu,"
-                      "%llu,%llu",
+                      "%llu,%llu,%.16e,%.16e,%.16e",
                       t_, step_, dt_next_, kinetic, internal, g[2], external, boundary, filter, conversion_energy_,
                       bond, energy_error_, g[5], g[6], g[7], conversion_.n_converted(), bonds_.n_broken(),
-                      bonds_.n_free());
+                      bonds_.n_free(), g[10], g[11], contact_.wall_force());
         history_ << row;
         for (const double x : q)
           {
@@ -630,6 +642,7 @@ namespace shard
     physical_step_ = ~0u;
     quantities_.prepare(discretization_, hex_, conditions_, spg_);
     fragments_.prepare(discretization_, hex_, particles_);
+    contact_.prepare(discretization_, materials_, particles_, conversion_.converted_cells(), mass_, source_);
     stable_dt_ = std::min(stable_dt_, spg_.current_stable_dt());
 
     Utilities::MPI::sum(ArrayView<const double>(energy, 2), comm_, ArrayView<double>(energy, 2));
@@ -719,6 +732,7 @@ namespace shard
     j << "  \"conversion_energy\": " << number(conversion_energy_) << ",\n";
     j << "  \"broken_bonds\": " << bonds_.n_broken() << ",\n";
     j << "  \"free_particles\": " << bonds_.n_free() << ",\n";
+    j << "  \"contact_rebuilds\": " << contact_.n_rebuilds() << ",\n";
     if (!last_fragments_.empty())
       {
         double total = 0, largest = 0;

@@ -13,7 +13,7 @@ namespace shard::time
     if (declared_)
       return false;
     declared_ = true;
-    prm.enter_subsection("I - Time integration");
+    prm.enter_subsection("J - Time integration");
     prm.add_parameter("end time", end_time_, "Simulated end time. Unit: s. Range: > 0.", Patterns::Double(0));
     prm.add_parameter("safety factor", safety_factor_,
                       "Factor on the smallest element step L_e / c_e (LS-DYNA TSSFAC). Unit: 1. Range: (0, 1].",
@@ -41,7 +41,7 @@ namespace shard::time
   void
   CentralDifference::check_parameters(const base::PrmSource &source) const
   {
-    const std::string p = "I - Time integration/";
+    const std::string p = "J - Time integration/";
     if (!(end_time_ > 0))
       source.fail(p + "end time", std::to_string(end_time_), "must be > 0. Unit: s.");
     if (!(safety_factor_ > 0 && safety_factor_ <= 1))

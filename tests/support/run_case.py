@@ -12,13 +12,16 @@ A case is a directory holding <case>.prm, or a path <case>.prm; beside the .prm 
                      types: mean (from, to), first_crossing (level), last_crossing (level),
                             max_abs (optional from), final, max, min, growth (from, to),
                             relative_drift (max |y - y(0)| / |y(0)|); optional "scale" multiplies the value.
+  (.checks types: mean, first_crossing, last_crossing, max_abs, max, min, final, relative_drift,
+   max_filtered (largest centred moving average over "window" s), duration (first to last row
+   above "level"), growth)
   <case>.summary     JSON list of checks on summary.json: {"key", "expected", "rel" | "abs"};
                      a key "a/b" looks into object a (run: "results/x"; material-test:
                      "final_state/effective plastic strain").
 
 Options: --command NAME is the shard command (default `run`; `material-test` for a material point
 case, whose history.csv has the same 'time' column and is checked the same way); --output-key PATH
-is the key that sets the output directory (default `J - Output/directory`; for material-test
+is the key that sets the output directory (default `K - Output/directory`; for material-test
 `M - Material test/output directory`). The progress lines are switched off only for `run`.
 --np N runs with mpiexec; --compare-ranks A B runs at both counts and requires the
 histories (and fragments.csv, when written) to agree to --rel (default 1e-8) relative to max(|a|, |b|, scale), where the scale of
@@ -83,7 +86,7 @@ def run_shard(args, np, outdir, extra_sets=()):
         cmd = [args.mpiexec] + args.mpiexec_flags.split() + ["-np", str(np)]
     cmd += [args.shard, args.command, case_base(args) + ".prm", "--set", f"{args.output_key}={outdir}"]
     if args.command == "run":
-        cmd += ["--set", "J - Output/progress interval=0"]
+        cmd += ["--set", "K - Output/progress interval=0"]
     for s in list(args.set or []) + list(extra_sets):
         cmd += ["--set", s]
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
@@ -151,6 +154,17 @@ def check_case(args, outdir, failures):
             elif kind == "relative_drift":
                 # Largest |y - y(0)| / |y(0)| over the run (conserved quantities).
                 value = max(abs(y - ys[0]) for y in ys) / abs(ys[0])
+            elif kind == "max_filtered":
+                # Largest moving average over a centred time window (e.g. a contact force without
+                # the ringing of the discrete wave front); "window" in s.
+                w = 0.5 * c["window"]
+                value = max(sum(yy for tt, yy in zip(ts, ys) if t - w <= tt <= t + w) /
+                            max(1, sum(1 for tt in ts if t - w <= tt <= t + w))
+                            for t in ts if ts[0] + w <= t <= ts[-1] - w)
+            elif kind == "duration":
+                # Time from the first to the last row where the column exceeds "level".
+                on = [t for t, y in zip(ts, ys) if y > c["level"]]
+                value = on[-1] - on[0] if on else 0.0
             elif kind == "growth":
                 # Largest |y| after "from" over the largest |y| up to "to" (no growth: <= 1).
                 late = max(abs(y) for t, y in zip(ts, ys) if t >= c["from"])
@@ -247,7 +261,7 @@ def main():
     ap.add_argument("--shard", required=True)
     ap.add_argument("--case", required=True)
     ap.add_argument("--command", default="run", help="shard command: run (default) or material-test")
-    ap.add_argument("--output-key", default="J - Output/directory",
+    ap.add_argument("--output-key", default="K - Output/directory",
                     help="key of the output directory (material-test: 'M - Material test/output directory')")
     ap.add_argument("--np", type=int, default=0)
     ap.add_argument("--mpiexec", default="mpiexec")

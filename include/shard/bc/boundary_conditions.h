@@ -2,7 +2,7 @@
 /**
  * @file boundary_conditions.h
  * @brief Kinematic (fixed, prescribed velocity, frictionless rigid wall) and force-type
- *        (traction) boundary conditions. Subsection `H - Boundary conditions`.
+ *        (traction) boundary conditions. Subsection `I - Boundary conditions`.
  * @ingroup bc
  */
 #pragma once
@@ -20,7 +20,7 @@
 
 namespace shard::bc
 {
-  /// Parameters of one boundary condition (subsection `H - Boundary conditions/<name>`).
+  /// Parameters of one boundary condition (subsection `I - Boundary conditions/<name>`).
   struct ConditionParameters
   {
     /// Name (the subsection name).

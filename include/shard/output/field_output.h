@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 /**
  * @file field_output.h
- * @brief ParaView output of the fields (subsection `J - Output`): one PVTU per output time,
+ * @brief ParaView output of the fields (subsection `K - Output`): one PVTU per output time,
  *        collected in a PVD time series, written on the deformed mesh.
  * @ingroup output
  */

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 /**
  * @file quantities.h
- * @brief Scene quantities of interest (subsection `K - Quantities`): reaction forces,
+ * @brief Scene quantities of interest (subsection `L - Quantities`): reaction forces,
  *        extents, point stresses and velocities, maxima of history variables, odd-even
  *        indicator, L2 error against an exact displacement.
  * @ingroup output

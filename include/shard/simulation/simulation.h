@@ -8,6 +8,7 @@
 
 #include <shard/base/parameters.h>
 #include <shard/bc/boundary_conditions.h>
+#include <shard/contact/contact.h>
 #include <shard/coupling/conversion.h>
 #include <shard/fe/hex_force.h>
 #include <shard/materials/material_library.h>
@@ -104,6 +105,7 @@ namespace shard
     particles::ParticleSet       particles_;
     particles::BondFailure       bonds_;
     coupling::Conversion         conversion_;
+    contact::Contact             contact_;
     fe::HexForce                 hex_;
     particles::SpgForce          spg_;
     bc::BoundaryConditions       conditions_;

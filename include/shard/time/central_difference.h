@@ -2,7 +2,7 @@
 /**
  * @file central_difference.h
  * @brief Central-difference (kick-drift) time integration and the stable step
- *        (subsection `I - Time integration`).
+ *        (subsection `J - Time integration`).
  * @ingroup time
  */
 #pragma once

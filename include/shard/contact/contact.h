@@ -1,0 +1,205 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+/**
+ * @file contact.h
+ * @brief Penalty contact: FE surfaces against nodes and particles, particle (debris)
+ *        self-contact, rigid walls; optional Coulomb friction. Subsection `H - Contact`.
+ * @ingroup contact
+ *
+ * Theory, stiffness choices, time-step effect and validation: doc/manual/contact.md.
+ */
+#pragma once
+
+#include <shard/base/parameters.h>
+#include <shard/contact/contact_geometry.h>
+#include <shard/materials/material_library.h>
+#include <shard/mesh/discretization.h>
+#include <shard/particles/particle_set.h>
+
+#include <array>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+namespace shard::contact
+{
+  /// What one contact evaluation returns (this rank's share).
+  struct ContactResult
+  {
+    /// Critical step of the penalty springs, 2 sqrt(m / k) (s).
+    double stable_dt = 1e300;
+  };
+
+  /**
+   * @brief Penalty contact between contact nodes (FE surface nodes and particles, at their
+   * current positions X + d) and contact segments (boundary faces of intact hexahedra),
+   * between particles (spheres of radius h/2, pairs without an intact bond) and against
+   * rigid planes.
+   *
+   * Interactions (`H - Contact/interactions`), each with a `type`:
+   * - `node to surface`: the nodes of `body` (surface nodes of FE, every particle of particle
+   *   bodies) against the surface faces of `target` (FE); `symmetric` adds the other way;
+   * - `particles`: particle against particle among the particles of `body` (comma list), so
+   *   debris of one body and particles of different bodies meet;
+   * - `rigid wall`: the nodes of `body` against the plane through `wall point` with normal
+   *   `wall normal` (towards the body).
+   *
+   * Parallel layout (doc/manual/contact.md): the contact nodes of all ranks are gathered at
+   * every step in the exchange phase, so every rank evaluates every pair and adds the forces of
+   * its own nodes. No pair is split between ranks and the forces do not depend on the
+   * partition. The memory and traffic are O(contact nodes) per rank and step, fine up to a few
+   * 10^5 contact nodes; a scalable import of remote candidates is issue 8.
+   */
+  class Contact : public base::ParameterOwner
+  {
+  public:
+    bool
+    declare_parameters(dealii::ParameterHandler &prm) override;
+
+    void
+    check_parameters(const base::PrmSource &source) const override;
+
+    /**
+     * @brief Collects the contact nodes and segments of all ranks, their masses and penalty
+     * stiffnesses. Call again after a conversion (the FE surface and the particles change).
+     * @param mass lumped mass (ghost values not needed)
+     * @param converted_cells flags by active cell index (converted cells have no segments)
+     * @note Collective.
+     */
+    void
+    prepare(const mesh::Discretization &discretization, const materials::MaterialLibrary &materials,
+            const particles::ParticleSet &particles, const std::vector<bool> &converted_cells,
+            const mesh::Vector &mass, const base::PrmSource &source);
+
+    /// Whether any interaction is defined.
+    bool
+    active() const
+    {
+      return !interactions_.empty();
+    }
+
+    /**
+     * @brief The exchange: gathers the current positions X + d and the velocities @p v of
+     * every contact node from its owner. @note Collective.
+     */
+    void
+    exchange(const mesh::Vector &d, const mesh::Vector &v);
+
+    /**
+     * @brief Adds the penalty and friction forces of every contact pair to the owned entries of
+     * @p f; rebuilds the candidate lists when the largest displacement since the last build
+     * exceeds half the skin or the rebuild interval has passed, or bonds broke. Accumulates
+     * the contact work and, with the step @p dt, the friction dissipation. Not collective
+     * (every rank has every position).
+     */
+    ContactResult
+    add_forces(unsigned int step, double dt, mesh::Vector &f);
+
+    /// Energy stored in and dissipated by the contact, -sum of the work of the contact forces
+    /// on this rank's nodes (J).
+    double
+    energy() const
+    {
+      return energy_;
+    }
+
+    /// Part of energy() dissipated by friction (J, counted on rank 0).
+    double
+    friction_energy() const
+    {
+      return friction_energy_;
+    }
+
+    /// Sum of the normal forces on the rigid walls at the last evaluation (N, every rank).
+    double
+    wall_force() const
+    {
+      return wall_force_;
+    }
+
+    /// Candidate rebuilds so far.
+    unsigned int
+    n_rebuilds() const
+    {
+      return n_rebuilds_;
+    }
+
+  private:
+    enum class Type
+    {
+      node_to_surface,
+      particles,
+      rigid_wall
+    };
+    struct Interaction
+    {
+      std::string type_text = "node to surface";
+      std::string body_text, target;
+      bool        symmetric   = false;
+      double      penalty     = 0.1;
+      double      friction    = 0;
+      std::string wall_point  = "0, 0, 0";
+      std::string wall_normal = "0, 0, 1";
+      // Resolved.
+      Type                 type = Type::node_to_surface;
+      std::vector<unsigned int> bodies;
+      unsigned int         target_body = 0;
+      Vec3                 point{}, normal{};
+    };
+    /// A contact node: one per contact DOF triple on any rank.
+    struct Node
+    {
+      unsigned long long dof = 0; // global DOF of the x component
+      Vec3               X{};
+      double             mass = 0, radius = 0, bulk = 0, spacing = 0;
+      unsigned int       body = 0;
+      bool               particle = false;
+    };
+    /// A boundary face of an intact hex: four contact node indices, counter-clockwise seen
+    /// from outside, and its penalty stiffness.
+    struct Segment
+    {
+      std::array<unsigned int, 4> node{};
+      double                      stiffness = 0;
+      unsigned int                body      = 0;
+    };
+
+    std::string                        names_text_;
+    std::vector<std::string>           names_;
+    std::map<std::string, Interaction> settings_;
+    std::set<std::string>              declared_names_;
+    bool                               declared_         = false;
+    double                             skin_             = 0;
+    unsigned int                       rebuild_interval_ = 50;
+    double                             friction_velocity_ = 1e-3;
+    std::vector<Interaction>           interactions_;
+
+    MPI_Comm                  comm_ = MPI_COMM_SELF;
+    std::vector<Node>         nodes_;
+    std::vector<Segment>      segments_;
+    std::vector<int>          counts_, displs_;   // per rank, in doubles (6 per node)
+    std::vector<unsigned int> owned_local_dof_;   // this rank's contact nodes, local DOF
+    unsigned int              owned_begin_ = 0;   // index of this rank's first node in nodes_
+    std::vector<double>       state_;             // x (3) and v (3) per node
+    std::vector<double>       force_, force_old_, x_old_;
+    std::vector<Vec3>         x_build_;
+    std::set<std::pair<unsigned long long, unsigned long long>> broken_;
+    std::vector<unsigned long long>                             free_;
+    const particles::ParticleSet *particles_ = nullptr;
+    dealii::types::global_dof_index n_dofs_ = 0;
+    std::vector<Vec3>            radius_of_support_;
+    /// Candidates per interaction: (node, segment), (node, node) or (node).
+    std::vector<std::vector<std::array<unsigned int, 2>>> candidates_;
+    unsigned int                                          last_build_ = 0;
+    bool                                                  built_      = false;
+    unsigned int                                          n_rebuilds_ = 0;
+    double energy_ = 0, friction_energy_ = 0, wall_force_ = 0, stable_dt_ = 1e300;
+    double skin_used_ = 0;
+
+    void
+    build_candidates(unsigned int step);
+    /// Whether particles @p a and @p b (node indices) are joined by an intact bond.
+    bool
+    bonded(unsigned int a, unsigned int b) const;
+  };
+} // namespace shard::contact

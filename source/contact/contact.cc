@@ -1,0 +1,615 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/contact/contact.h>
+
+#include <deal.II/base/mpi.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace shard::contact
+{
+  using namespace dealii;
+
+  namespace
+  {
+    /// Doubles per node in the set-up table.
+    constexpr unsigned int node_record = 13;
+    /// Doubles per node in the step exchange: x and v.
+    constexpr unsigned int state_record = 6;
+
+    Vec3
+    parse_point(const std::string &text)
+    {
+      const auto parts = base::split(text, ',');
+      if (parts.size() != 3)
+        throw std::invalid_argument("three numbers separated by ',' expected");
+      Vec3 p;
+      for (unsigned int k = 0; k < 3; ++k)
+        p[k] = std::stod(parts[k]);
+      return p;
+    }
+
+    double
+    norm(const Vec3 &a)
+    {
+      return std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    }
+  } // namespace
+
+  bool
+  Contact::declare_parameters(ParameterHandler &prm)
+  {
+    bool added = false;
+    prm.enter_subsection("H - Contact");
+    if (!declared_)
+      {
+        declared_ = added = true;
+        prm.add_parameter("interactions", names_text_,
+                          "Comma-separated names of contact interactions; each has a subsection. Empty: no "
+                          "contact.");
+        prm.add_parameter("skin", skin_,
+                          "Search margin: candidate pairs are found within contact distance + skin and rebuilt "
+                          "when a node has moved more than skin/2 since the last build. 0: the smallest contact "
+                          "spacing. Unit: m. Range: >= 0.",
+                          Patterns::Double(0));
+        prm.add_parameter("rebuild interval", rebuild_interval_,
+                          "Steps after which the candidate pairs are rebuilt even if no node moved skin/2. Unit: "
+                          "steps. Range: >= 1.",
+                          Patterns::Integer(1));
+        prm.add_parameter("friction velocity", friction_velocity_,
+                          "Sliding speed below which the Coulomb friction force grows linearly with the speed "
+                          "(regularization). Unit: m/s. Range: > 0.",
+                          Patterns::Double(0));
+      }
+    names_ = base::split(names_text_, ',');
+    for (const auto &name : names_)
+      {
+        if (declared_names_.count(name))
+          continue;
+        declared_names_.insert(name);
+        added   = true;
+        auto &s = settings_[name];
+        prm.enter_subsection(name);
+        prm.add_parameter("type", s.type_text,
+                          "node to surface: nodes (FE surface nodes, all particles) of 'body' against the "
+                          "surface faces of the FE body 'target'; particles: particle against particle among "
+                          "the particles of 'body' (debris, pairs without an intact bond); rigid wall: nodes of "
+                          "'body' against a plane.",
+                          Patterns::Selection("node to surface|particles|rigid wall"));
+        prm.add_parameter("body", s.body_text, "Body names (comma separated) whose nodes or particles take part.");
+        prm.add_parameter("target", s.target, "node to surface: the FE body whose surface faces are the segments.");
+        prm.add_parameter("symmetric", s.symmetric,
+                          "node to surface: also the surface nodes of 'target' against the faces of 'body' "
+                          "(both FE), so neither surface passes through the other.");
+        prm.add_parameter("penalty scale", s.penalty,
+                          "Penalty stiffness factor s: k = s K A^2 / V per segment (K bulk modulus, A face "
+                          "area, V element volume), k = s K h per node for particles and walls (h spacing). "
+                          "LS-DYNA's SLSFAC default is 0.1. The step shrinks when 2 sqrt(m/k) falls below the "
+                          "element step. Unit: 1. Range: > 0.",
+                          Patterns::Double(0));
+        prm.add_parameter("friction coefficient", s.friction,
+                          "Coulomb friction coefficient mu (regularized below 'friction velocity'). Unit: 1. "
+                          "Range: >= 0.",
+                          Patterns::Double(0));
+        prm.add_parameter("wall point", s.wall_point, "rigid wall: a point of the plane. Unit: m.");
+        prm.add_parameter("wall normal", s.wall_normal, "rigid wall: normal of the plane, towards the body. Unit: 1.");
+        prm.leave_subsection();
+      }
+    prm.leave_subsection();
+    return added;
+  }
+
+  void
+  Contact::check_parameters(const base::PrmSource &source) const
+  {
+    const std::string top = "H - Contact/";
+    base::check_names(source, top + "interactions", names_text_, names_, true);
+    if (!names_.empty() && !(friction_velocity_ > 0))
+      source.fail(top + "friction velocity", std::to_string(friction_velocity_), "> 0. Unit: m/s.");
+    for (const auto &name : names_)
+      {
+        const auto &s = settings_.at(name);
+        if (!(s.penalty > 0))
+          source.fail(top + name + "/penalty scale", std::to_string(s.penalty), "> 0.");
+        if (base::split(s.body_text, ',').empty())
+          source.fail(top + name + "/body", s.body_text, "at least one body name.");
+        if (s.type_text == "node to surface" && s.target.empty())
+          source.fail(top + name + "/target", s.target, "the name of an FE body.");
+        if (s.type_text == "rigid wall")
+          for (const auto &[key, text] : {std::make_pair("wall point", s.wall_point),
+                                          std::make_pair("wall normal", s.wall_normal)})
+            {
+              try
+                {
+                  const Vec3 p = parse_point(text);
+                  if (std::string(key) == "wall normal" && !(norm(p) > 0))
+                    source.fail(top + name + "/" + key, text, "a nonzero vector.");
+                }
+              catch (const std::invalid_argument &)
+                {
+                  source.fail(top + name + "/" + key, text, "three numbers separated by ','.");
+                }
+            }
+      }
+  }
+
+  void
+  Contact::prepare(const mesh::Discretization &discretization, const materials::MaterialLibrary &materials,
+                   const particles::ParticleSet &particles, const std::vector<bool> &converted_cells,
+                   const mesh::Vector &mass, const base::PrmSource &source)
+  {
+    comm_      = discretization.communicator();
+    particles_ = &particles;
+    const auto &bodies = discretization.bodies();
+    const auto  body_index = [&](const std::string &name, const std::string &key) {
+      for (unsigned int b = 0; b < bodies.size(); ++b)
+        if (bodies[b].name == name)
+          return b;
+      source.fail(key, name, "a body of 'B - Mesh/body names'.");
+    };
+    interactions_.clear();
+    std::vector<bool> involved(bodies.size(), false);
+    for (const auto &name : names_)
+      {
+        Interaction s = settings_.at(name);
+        const std::string key = "H - Contact/" + name + "/";
+        s.type = s.type_text == "particles" ? Type::particles : s.type_text == "rigid wall" ? Type::rigid_wall :
+                                                                                              Type::node_to_surface;
+        for (const auto &b : base::split(s.body_text, ','))
+          {
+            s.bodies.push_back(body_index(b, key + "body"));
+            involved[s.bodies.back()] = true;
+          }
+        if (s.type == Type::node_to_surface)
+          {
+            s.target_body = body_index(s.target, key + "target");
+            if (particles.is_particle_body(s.target_body))
+              source.fail(key + "target", s.target, "an FE body (particle bodies meet through type 'particles').");
+            involved[s.target_body] = true;
+          }
+        if (s.type == Type::rigid_wall)
+          {
+            s.point  = parse_point(s.wall_point);
+            s.normal = parse_point(s.wall_normal);
+            const double l = norm(s.normal);
+            for (auto &c : s.normal)
+              c /= l;
+          }
+        interactions_.push_back(s);
+      }
+    if (interactions_.empty())
+      return;
+
+    // This rank's contact nodes and segments.
+    const auto        &pt = *discretization.partitioner();
+    const auto        &X  = discretization.reference_positions();
+    std::map<unsigned long long, std::array<double, node_record>> mine; // by global DOF
+    const auto bulk_of = [&](const unsigned int b) { return materials.get(bodies[b].material).elastic_moduli()[0]; };
+    const auto add_node = [&](const types::global_dof_index g, const unsigned int b, const double h,
+                              const bool is_particle, const Vec3 &support) {
+      if (!pt.in_local_range(g))
+        return;
+      const unsigned int j   = pt.global_to_local(g);
+      auto               it  = mine.find(g);
+      if (it == mine.end())
+        {
+          std::array<double, node_record> r{};
+          r[0] = double(g);
+          for (unsigned int c = 0; c < 3; ++c)
+            r[1 + c] = X.local_element(j + c);
+          r[4]  = mass.local_element(j);
+          r[5]  = is_particle ? 0.5 * h : 0.;
+          r[6]  = bulk_of(b);
+          r[7]  = h;
+          r[8]  = b;
+          r[9]  = is_particle;
+          for (unsigned int c = 0; c < 3; ++c)
+            r[10 + c] = support[c];
+          it = mine.emplace(g, r).first;
+        }
+      it->second[7] = std::max(it->second[7], h);
+    };
+    for (unsigned int i = 0; i < particles.n_owned(); ++i)
+      if (involved[particles.body(i)])
+        {
+          const auto &h = particles.spacing(i);
+          const Vec3  support{{particles.rk_parameters().dilation * h[0], particles.rk_parameters().dilation * h[1],
+                               particles.rk_parameters().dilation * h[2]}};
+          add_node(pt.local_to_global(particles.local_dof(i)), particles.body(i), std::min({h[0], h[1], h[2]}), true,
+                   support);
+        }
+    std::vector<double> segment_table; // 4 node DOFs, stiffness, body
+    for (const auto &cell : discretization.dof_handler().active_cell_iterators())
+      {
+        if (!cell->is_locally_owned() || converted_cells[cell->active_cell_index()] ||
+            !involved[cell->material_id()])
+          continue;
+        const unsigned int b      = cell->material_id();
+        const double       volume = cell->measure();
+        const double       h      = std::cbrt(volume);
+        Point<3>           centre = cell->center();
+        for (const unsigned int f : cell->face_indices())
+          {
+            const bool surface = cell->face(f)->at_boundary() || converted_cells[cell->neighbor(f)->active_cell_index()];
+            if (!surface)
+              continue;
+            const auto face = cell->face(f);
+            // Counter-clockwise seen from outside: lexicographic 0 1 3 2, reversed if the
+            // normal points into the cell.
+            std::array<unsigned int, 4> order{{0, 1, 3, 2}};
+            const Point<3> x0 = face->vertex(0), x1 = face->vertex(1), x3 = face->vertex(3);
+            const Tensor<1, 3> n = cross_product_3d(x1 - x0, x3 - x0);
+            if (n * (face->center() - centre) < 0)
+              std::swap(order[1], order[3]);
+            const double area = face->measure();
+            for (const unsigned int v : order)
+              {
+                const auto g = face->vertex_dof_index(v, 0);
+                segment_table.push_back(double(g));
+                add_node(g, b, h, false, Vec3{{0, 0, 0}});
+              }
+            segment_table.push_back(area * area / volume * bulk_of(b));
+            segment_table.push_back(b);
+          }
+      }
+    // Particle bodies' nodes on intact cells are FE nodes; those of converted cells were added
+    // as particles above.
+
+    // Gather: nodes in rank order (each rank's nodes sorted by DOF), then segments.
+    std::vector<double> flat;
+    for (const auto &[g, r] : mine)
+      flat.insert(flat.end(), r.begin(), r.end());
+    const auto all_nodes    = Utilities::MPI::all_gather(comm_, flat);
+    const auto all_segments = Utilities::MPI::all_gather(comm_, segment_table);
+    const unsigned int rank = Utilities::MPI::this_mpi_process(comm_);
+    nodes_.clear();
+    counts_.assign(all_nodes.size(), 0);
+    displs_.assign(all_nodes.size(), 0);
+    std::map<unsigned long long, unsigned int> index_of;
+    for (unsigned int r = 0; r < all_nodes.size(); ++r)
+      {
+        if (r == rank)
+          owned_begin_ = nodes_.size();
+        displs_[r] = state_record * nodes_.size();
+        for (std::size_t p = 0; p < all_nodes[r].size(); p += node_record)
+          {
+            const double *a = &all_nodes[r][p];
+            Node          n;
+            n.dof     = static_cast<unsigned long long>(a[0]);
+            n.X       = Vec3{{a[1], a[2], a[3]}};
+            n.mass    = a[4];
+            n.radius  = a[5];
+            n.bulk    = a[6];
+            n.spacing = a[7];
+            n.body    = static_cast<unsigned int>(a[8]);
+            n.particle = a[9] > 0;
+            index_of[n.dof] = nodes_.size();
+            nodes_.push_back(n);
+            radius_of_support_.push_back(Vec3{{a[10], a[11], a[12]}});
+          }
+        counts_[r] = state_record * nodes_.size() - displs_[r];
+      }
+    radius_of_support_.resize(nodes_.size());
+    owned_local_dof_.clear();
+    for (const auto &[g, r] : mine)
+      owned_local_dof_.push_back(pt.global_to_local(g));
+    segments_.clear();
+    for (const auto &part : all_segments)
+      for (std::size_t p = 0; p < part.size(); p += 6)
+        {
+          Segment s;
+          for (unsigned int v = 0; v < 4; ++v)
+            s.node[v] = index_of.at(static_cast<unsigned long long>(part[p + v]));
+          s.stiffness = part[p + 4];
+          s.body      = static_cast<unsigned int>(part[p + 5]);
+          segments_.push_back(s);
+        }
+    state_.assign(state_record * nodes_.size(), 0.);
+    force_.assign(3 * nodes_.size(), 0.);
+    force_old_.assign(3 * nodes_.size(), 0.);
+    x_old_.clear();
+    candidates_.assign(interactions_.size(), {});
+    built_ = false;
+    broken_.clear();
+    for (const auto &b : particles.broken_bonds())
+      broken_.insert(b);
+    free_ = particles.free_particles();
+
+    // Skin and the critical step of the stiffest spring each node can meet.
+    double smallest = 1e300;
+    for (const auto &n : nodes_)
+      smallest = std::min(smallest, n.spacing);
+    skin_used_ = skin_ > 0 ? skin_ : smallest;
+    stable_dt_ = 1e300;
+    for (const auto &s : interactions_)
+      {
+        double k_segment = 0;
+        if (s.type == Type::node_to_surface)
+          for (const auto &g : segments_)
+            if (g.body == s.target_body || (s.symmetric && std::count(s.bodies.begin(), s.bodies.end(), g.body)))
+              k_segment = std::max(k_segment, s.penalty * g.stiffness);
+        for (const auto &n : nodes_)
+          if (std::count(s.bodies.begin(), s.bodies.end(), n.body) && n.mass > 0)
+            {
+              // Two masses on one spring: the reduced mass m/2, except against a rigid wall. A
+              // node of a symmetric pair is a slave and a segment node at once: twice the spring.
+              const double k = s.type == Type::node_to_surface ? k_segment * (s.symmetric ? 2. : 1.) :
+                                                                 s.penalty * n.bulk * n.spacing;
+              const double m = s.type == Type::rigid_wall ? n.mass : 0.5 * n.mass;
+              if (k > 0)
+                stable_dt_ = std::min(stable_dt_, 2. * std::sqrt(m / k));
+            }
+      }
+  }
+
+  void
+  Contact::exchange(const mesh::Vector &d, const mesh::Vector &v)
+  {
+    if (interactions_.empty())
+      return;
+    std::vector<double> mine(state_record * owned_local_dof_.size());
+    for (std::size_t k = 0; k < owned_local_dof_.size(); ++k)
+      {
+        const Node &n = nodes_[owned_begin_ + k];
+        for (unsigned int c = 0; c < 3; ++c)
+          {
+            mine[state_record * k + c]     = n.X[c] + d.local_element(owned_local_dof_[k] + c);
+            mine[state_record * k + 3 + c] = v.local_element(owned_local_dof_[k] + c);
+          }
+      }
+    MPI_Allgatherv(mine.data(), static_cast<int>(mine.size()), MPI_DOUBLE, state_.data(), counts_.data(),
+                   displs_.data(), MPI_DOUBLE, comm_);
+  }
+
+  bool
+  Contact::bonded(const unsigned int a, const unsigned int b) const
+  {
+    const Node &p = nodes_[a], &q = nodes_[b];
+    if (!p.particle || !q.particle || p.body != q.body)
+      return false;
+    const unsigned long long ia = p.dof / 3, ib = q.dof / 3;
+    if (std::binary_search(free_.begin(), free_.end(), ia) || std::binary_search(free_.begin(), free_.end(), ib))
+      return false;
+    if (broken_.count({std::min(ia, ib), std::max(ia, ib)}))
+      return false;
+    // A bond: one particle inside the other's (box) support.
+    const auto inside = [&](const unsigned int i, const Node &other) {
+      for (unsigned int c = 0; c < 3; ++c)
+        if (std::abs(other.X[c] - nodes_[i].X[c]) >= radius_of_support_[i][c])
+          return false;
+      return true;
+    };
+    return inside(a, q) || inside(b, p);
+  }
+
+  void
+  Contact::build_candidates(const unsigned int step)
+  {
+    ++n_rebuilds_;
+    last_build_ = step;
+    built_      = true;
+    broken_.clear();
+    for (const auto &b : particles_->broken_bonds())
+      broken_.insert(b);
+    free_ = particles_->free_particles();
+    const unsigned int n = nodes_.size();
+    std::vector<Vec3>  x(n);
+    for (unsigned int i = 0; i < n; ++i)
+      x[i] = Vec3{{state_[state_record * i], state_[state_record * i + 1], state_[state_record * i + 2]}};
+    x_build_ = x;
+    double largest_radius = 0, largest_spacing = 0;
+    for (const auto &p : nodes_)
+      largest_radius = std::max(largest_radius, p.radius), largest_spacing = std::max(largest_spacing, p.spacing);
+    BinGrid grid;
+    grid.build(x, std::max(2. * largest_radius + skin_used_, skin_used_));
+    for (unsigned int s = 0; s < interactions_.size(); ++s)
+      {
+        const auto &in = interactions_[s];
+        auto       &cand = candidates_[s];
+        cand.clear();
+        const auto member = [&](const unsigned int i, const std::vector<unsigned int> &list) {
+          return std::count(list.begin(), list.end(), nodes_[i].body) > 0;
+        };
+        if (in.type == Type::rigid_wall)
+          {
+            for (unsigned int i = 0; i < n; ++i)
+              if (member(i, in.bodies) && plane_gap(x[i], in.point, in.normal) < skin_used_)
+                cand.push_back({{i, 0u}});
+          }
+        else if (in.type == Type::particles)
+          {
+            for (unsigned int i = 0; i < n; ++i)
+              {
+                if (!nodes_[i].particle || !member(i, in.bodies))
+                  continue;
+                const double r = 2. * largest_radius + skin_used_;
+                grid.for_each_in_box(Vec3{{x[i][0] - r, x[i][1] - r, x[i][2] - r}},
+                                     Vec3{{x[i][0] + r, x[i][1] + r, x[i][2] + r}}, [&](const unsigned int j) {
+                                       if (j <= i || !nodes_[j].particle || !member(j, in.bodies))
+                                         return;
+                                       Vec3 dx{{x[j][0] - x[i][0], x[j][1] - x[i][1], x[j][2] - x[i][2]}};
+                                       if (norm(dx) < nodes_[i].radius + nodes_[j].radius + skin_used_ &&
+                                           !bonded(i, j))
+                                         cand.push_back({{i, j}});
+                                     });
+              }
+          }
+        else
+          {
+            // Each segment of the target (and of the bodies when symmetric) against the nodes
+            // of the other side near its box.
+            for (unsigned int g = 0; g < segments_.size(); ++g)
+              {
+                const auto &seg = segments_[g];
+                const bool  forward  = seg.body == in.target_body;
+                const bool  backward = in.symmetric && member(seg.node[0], in.bodies);
+                if (!forward && !backward)
+                  continue;
+                Vec3 lo = x[seg.node[0]], hi = lo;
+                for (const unsigned int v : seg.node)
+                  for (unsigned int c = 0; c < 3; ++c)
+                    lo[c] = std::min(lo[c], x[v][c]), hi[c] = std::max(hi[c], x[v][c]);
+                const double r = skin_used_ + largest_spacing;
+                for (unsigned int c = 0; c < 3; ++c)
+                  lo[c] -= r, hi[c] += r;
+                grid.for_each_in_box(lo, hi, [&](const unsigned int i) {
+                  if (std::count(seg.node.begin(), seg.node.end(), i))
+                    return;
+                  const bool slave = forward ? member(i, in.bodies) : nodes_[i].body == in.target_body;
+                  if (slave && (!nodes_[i].particle || forward))
+                    cand.push_back({{i, g}});
+                });
+              }
+          }
+      }
+  }
+
+  ContactResult
+  Contact::add_forces(const unsigned int step, const double dt, mesh::Vector &f)
+  {
+    ContactResult result;
+    if (interactions_.empty())
+      return result;
+    const unsigned int n = nodes_.size();
+    const auto position = [&](const unsigned int i) {
+      return Vec3{{state_[state_record * i], state_[state_record * i + 1], state_[state_record * i + 2]}};
+    };
+    const auto velocity = [&](const unsigned int i) {
+      return Vec3{{state_[state_record * i + 3], state_[state_record * i + 4], state_[state_record * i + 5]}};
+    };
+    // Rebuild rule: the rebuild interval, or a node moved more than skin/2 since the last build.
+    bool rebuild = !built_ || step >= last_build_ + rebuild_interval_ ||
+                   particles_->broken_bonds().size() != broken_.size() ||
+                   particles_->free_particles().size() != free_.size();
+    for (unsigned int i = 0; i < n && !rebuild; ++i)
+      {
+        const Vec3 x = position(i);
+        const Vec3 dx{{x[0] - x_build_[i][0], x[1] - x_build_[i][1], x[2] - x_build_[i][2]}};
+        rebuild = norm(dx) > 0.5 * skin_used_;
+      }
+    if (rebuild)
+      build_candidates(step);
+
+    force_old_.swap(force_);
+    std::fill(force_.begin(), force_.end(), 0.);
+    double     friction_power = 0;
+    wall_force_               = 0;
+    const auto add            = [&](const unsigned int i, const Vec3 &g, const double w) {
+      for (unsigned int c = 0; c < 3; ++c)
+        force_[3 * i + c] += w * g[c];
+    };
+    for (unsigned int s = 0; s < interactions_.size(); ++s)
+      {
+        const auto &in = interactions_[s];
+        if (in.type == Type::rigid_wall)
+          {
+            for (const auto &[i, unused] : candidates_[s])
+              {
+                const double gap = plane_gap(position(i), in.point, in.normal);
+                if (gap >= 0)
+                  continue;
+                const double fn = in.penalty * nodes_[i].bulk * nodes_[i].spacing * (-gap);
+                Vec3         fvec{{fn * in.normal[0], fn * in.normal[1], fn * in.normal[2]}};
+                if (in.friction > 0)
+                  {
+                    const Vec3 ft = coulomb_friction(velocity(i), in.normal, fn, in.friction, friction_velocity_);
+                    const Vec3 vi = velocity(i);
+                    friction_power -= ft[0] * vi[0] + ft[1] * vi[1] + ft[2] * vi[2];
+                    for (unsigned int c = 0; c < 3; ++c)
+                      fvec[c] += ft[c];
+                  }
+                add(i, fvec, 1.);
+                wall_force_ += fn;
+              }
+          }
+        else if (in.type == Type::particles)
+          {
+            for (const auto &[i, j] : candidates_[s])
+              {
+                const SphereHit h = sphere_pair(position(i), position(j), nodes_[i].radius, nodes_[j].radius);
+                if (h.overlap <= 0)
+                  continue;
+                const double k  = in.penalty * std::min(nodes_[i].bulk, nodes_[j].bulk) *
+                                 std::min(nodes_[i].spacing, nodes_[j].spacing);
+                const double fn = k * h.overlap;
+                Vec3         fj{{fn * h.normal[0], fn * h.normal[1], fn * h.normal[2]}};
+                if (in.friction > 0)
+                  {
+                    const Vec3 vi = velocity(i), vj = velocity(j);
+                    const Vec3 vr{{vj[0] - vi[0], vj[1] - vi[1], vj[2] - vi[2]}};
+                    const Vec3 ft = coulomb_friction(vr, h.normal, fn, in.friction, friction_velocity_);
+                    friction_power -= ft[0] * vr[0] + ft[1] * vr[1] + ft[2] * vr[2];
+                    for (unsigned int c = 0; c < 3; ++c)
+                      fj[c] += ft[c];
+                  }
+                add(j, fj, 1.);
+                add(i, fj, -1.);
+              }
+          }
+        else
+          {
+            // Per slave node the segment it penetrates least deeply (the nearest surface).
+            std::map<unsigned int, std::pair<SegmentHit, unsigned int>> best;
+            for (const auto &[i, g] : candidates_[s])
+              {
+                const auto &seg = segments_[g];
+                std::array<Vec3, 4> xs;
+                for (unsigned int v = 0; v < 4; ++v)
+                  xs[v] = position(seg.node[v]);
+                const SegmentHit h = point_segment(position(i), xs, nodes_[seg.node[0]].spacing);
+                if (!h.hit)
+                  continue;
+                auto it = best.find(i);
+                if (it == best.end() || std::abs(h.gap) < std::abs(it->second.first.gap))
+                  best[i] = {h, g};
+              }
+            for (const auto &[i, hit] : best)
+              {
+                const auto &[h, g] = hit;
+                const auto  &seg   = segments_[g];
+                const double fn    = in.penalty * seg.stiffness * (-h.gap);
+                Vec3         fi{{fn * h.normal[0], fn * h.normal[1], fn * h.normal[2]}};
+                if (in.friction > 0)
+                  {
+                    Vec3 vm{{0, 0, 0}};
+                    for (unsigned int v = 0; v < 4; ++v)
+                      for (unsigned int c = 0; c < 3; ++c)
+                        vm[c] += h.weights[v] * state_[state_record * seg.node[v] + 3 + c];
+                    const Vec3 vi = velocity(i);
+                    const Vec3 vr{{vi[0] - vm[0], vi[1] - vm[1], vi[2] - vm[2]}};
+                    const Vec3 ft = coulomb_friction(vr, h.normal, fn, in.friction, friction_velocity_);
+                    friction_power -= ft[0] * vr[0] + ft[1] * vr[1] + ft[2] * vr[2];
+                    for (unsigned int c = 0; c < 3; ++c)
+                      fi[c] += ft[c];
+                  }
+                add(i, fi, 1.);
+                for (unsigned int v = 0; v < 4; ++v)
+                  add(seg.node[v], fi, -h.weights[v]);
+              }
+          }
+      }
+
+    // Forces of this rank's nodes; contact work on them (trapezoid over the displacement).
+    const bool first = x_old_.empty();
+    if (first)
+      x_old_.assign(3 * owned_local_dof_.size(), 0.);
+    for (std::size_t k = 0; k < owned_local_dof_.size(); ++k)
+      {
+        const unsigned int i = owned_begin_ + k;
+        for (unsigned int c = 0; c < 3; ++c)
+          {
+            const double x = state_[state_record * i + c];
+            f.local_element(owned_local_dof_[k] + c) += force_[3 * i + c];
+            if (!first)
+              energy_ -= 0.5 * (force_old_[3 * i + c] + force_[3 * i + c]) * (x - x_old_[3 * k + c]);
+            x_old_[3 * k + c] = x;
+          }
+      }
+    // Friction dissipation (replicated on every rank, counted on rank 0), mid-step velocities.
+    if (Utilities::MPI::this_mpi_process(comm_) == 0)
+      friction_energy_ += friction_power * dt;
+    result.stable_dt = stable_dt_;
+    return result;
+  }
+} // namespace shard::contact
