@@ -310,11 +310,14 @@ namespace shard::contact
     force_old_.assign(3 * nodes_.size(), 0.);
     x_old_.clear();
     candidates_.assign(interactions_.size(), {});
+    bonded_.assign(interactions_.size(), {});
+    offset_.assign(interactions_.size(), {});
+    entry_depth_.assign(interactions_.size(), std::vector<double>(nodes_.size(), -1.));
+    best_.assign(nodes_.size(), -1);
+    previous_slaves_.assign(interactions_.size(), {});
     built_ = false;
-    broken_.clear();
-    for (const auto &b : particles.broken_bonds())
-      broken_.insert(b);
-    free_ = particles.free_particles();
+    n_broken_seen_ = particles.broken_bonds().size();
+    n_free_seen_   = particles.free_particles().size();
 
     // Skin and the critical step of the stiffest spring each node can meet.
     double smallest = 1e300;
@@ -329,6 +332,14 @@ namespace shard::contact
           for (const auto &g : segments_)
             if (g.body == s.target_body || (s.symmetric && std::count(s.bodies.begin(), s.bodies.end(), g.body)))
               k_segment = std::max(k_segment, s.penalty * g.stiffness);
+        // A segment node carries the reactions of the slaves around it: up to about four
+        // springs of the segment stiffness at once.
+        if (s.type == Type::node_to_surface)
+          for (const auto &g : segments_)
+            if (g.body == s.target_body)
+              for (const unsigned int a : g.node)
+                if (nodes_[a].mass > 0)
+                  stable_dt_ = std::min(stable_dt_, 2. * std::sqrt(nodes_[a].mass / (4. * s.penalty * g.stiffness)));
         for (const auto &n : nodes_)
           if (std::count(s.bodies.begin(), s.bodies.end(), n.body) && n.mass > 0)
             {
@@ -369,9 +380,11 @@ namespace shard::contact
     if (!p.particle || !q.particle || p.body != q.body)
       return false;
     const unsigned long long ia = p.dof / 3, ib = q.dof / 3;
-    if (std::binary_search(free_.begin(), free_.end(), ia) || std::binary_search(free_.begin(), free_.end(), ib))
+    const auto &free   = particles_->free_particles();
+    const auto &broken = particles_->broken_bonds();
+    if (std::binary_search(free.begin(), free.end(), ia) || std::binary_search(free.begin(), free.end(), ib))
       return false;
-    if (broken_.count({std::min(ia, ib), std::max(ia, ib)}))
+    if (std::binary_search(broken.begin(), broken.end(), std::make_pair(std::min(ia, ib), std::max(ia, ib))))
       return false;
     // A bond: one particle inside the other's (box) support.
     const auto inside = [&](const unsigned int i, const Node &other) {
@@ -389,18 +402,14 @@ namespace shard::contact
     ++n_rebuilds_;
     last_build_ = step;
     built_      = true;
-    broken_.clear();
-    for (const auto &b : particles_->broken_bonds())
-      broken_.insert(b);
-    free_ = particles_->free_particles();
     const unsigned int n = nodes_.size();
     std::vector<Vec3>  x(n);
     for (unsigned int i = 0; i < n; ++i)
       x[i] = Vec3{{state_[state_record * i], state_[state_record * i + 1], state_[state_record * i + 2]}};
     x_build_ = x;
-    double largest_radius = 0, largest_spacing = 0;
+    double largest_radius = 0;
     for (const auto &p : nodes_)
-      largest_radius = std::max(largest_radius, p.radius), largest_spacing = std::max(largest_spacing, p.spacing);
+      largest_radius = std::max(largest_radius, p.radius);
     BinGrid grid;
     grid.build(x, std::max(2. * largest_radius + skin_used_, skin_used_));
     for (unsigned int s = 0; s < interactions_.size(); ++s)
@@ -429,8 +438,7 @@ namespace shard::contact
                                        if (j <= i || !nodes_[j].particle || !member(j, in.bodies))
                                          return;
                                        Vec3 dx{{x[j][0] - x[i][0], x[j][1] - x[i][1], x[j][2] - x[i][2]}};
-                                       if (norm(dx) < nodes_[i].radius + nodes_[j].radius + skin_used_ &&
-                                           !bonded(i, j))
+                                       if (norm(dx) < nodes_[i].radius + nodes_[j].radius + skin_used_)
                                          cand.push_back({{i, j}});
                                      });
               }
@@ -450,11 +458,30 @@ namespace shard::contact
                 for (const unsigned int v : seg.node)
                   for (unsigned int c = 0; c < 3; ++c)
                     lo[c] = std::min(lo[c], x[v][c]), hi[c] = std::max(hi[c], x[v][c]);
-                const double r = skin_used_ + largest_spacing;
+                const double depth = nodes_[seg.node[0]].spacing;
+                const double r     = skin_used_ + depth;
                 for (unsigned int c = 0; c < 3; ++c)
                   lo[c] -= r, hi[c] += r;
+                // Only nodes within the slab -depth - skin < (x - c) . n < skin of the segment's
+                // plane can touch it before the next rebuild.
+                Vec3 centre{{0, 0, 0}};
+                for (const unsigned int v : seg.node)
+                  for (unsigned int c = 0; c < 3; ++c)
+                    centre[c] += 0.25 * x[v][c];
+                const Vec3 e1{{x[seg.node[2]][0] - x[seg.node[0]][0], x[seg.node[2]][1] - x[seg.node[0]][1],
+                               x[seg.node[2]][2] - x[seg.node[0]][2]}};
+                const Vec3 e2{{x[seg.node[3]][0] - x[seg.node[1]][0], x[seg.node[3]][1] - x[seg.node[1]][1],
+                               x[seg.node[3]][2] - x[seg.node[1]][2]}};
+                Vec3       normal{{e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                                   e1[0] * e2[1] - e1[1] * e2[0]}};
+                const double length = norm(normal);
+                for (auto &c : normal)
+                  c /= length > 0 ? length : 1.;
                 grid.for_each_in_box(lo, hi, [&](const unsigned int i) {
                   if (std::count(seg.node.begin(), seg.node.end(), i))
+                    return;
+                  const double distance = plane_gap(x[i], centre, normal);
+                  if (length > 0 && (distance > skin_used_ || distance < -depth - skin_used_))
                     return;
                   const bool slave = forward ? member(i, in.bodies) : nodes_[i].body == in.target_body;
                   if (slave && (!nodes_[i].particle || forward))
@@ -479,9 +506,7 @@ namespace shard::contact
       return Vec3{{state_[state_record * i + 3], state_[state_record * i + 4], state_[state_record * i + 5]}};
     };
     // Rebuild rule: the rebuild interval, or a node moved more than skin/2 since the last build.
-    bool rebuild = !built_ || step >= last_build_ + rebuild_interval_ ||
-                   particles_->broken_bonds().size() != broken_.size() ||
-                   particles_->free_particles().size() != free_.size();
+    bool rebuild = !built_ || step >= last_build_ + rebuild_interval_;
     for (unsigned int i = 0; i < n && !rebuild; ++i)
       {
         const Vec3 x = position(i);
@@ -489,7 +514,42 @@ namespace shard::contact
         rebuild = norm(dx) > 0.5 * skin_used_;
       }
     if (rebuild)
-      build_candidates(step);
+      {
+        // Carry the offsets of the particle pairs over to the new candidate lists.
+        std::vector<std::unordered_map<unsigned long long, double>> kept(interactions_.size());
+        for (unsigned int s = 0; s < interactions_.size(); ++s)
+          for (std::size_t p = 0; p < offset_[s].size(); ++p)
+            if (offset_[s][p] >= 0)
+              kept[s][(static_cast<unsigned long long>(candidates_[s][p][0]) << 32) | candidates_[s][p][1]] =
+                offset_[s][p];
+        build_candidates(step);
+        for (unsigned int s = 0; s < interactions_.size(); ++s)
+          {
+            offset_[s].assign(candidates_[s].size(), -1.);
+            for (std::size_t p = 0; p < candidates_[s].size() && !kept[s].empty(); ++p)
+              {
+                const auto it =
+                  kept[s].find((static_cast<unsigned long long>(candidates_[s][p][0]) << 32) | candidates_[s][p][1]);
+                if (it != kept[s].end())
+                  offset_[s][p] = it->second;
+              }
+          }
+      }
+    // Bonds broke since the flags were set: refresh them (the candidates stay).
+    if (rebuild || particles_->broken_bonds().size() != n_broken_seen_ ||
+        particles_->free_particles().size() != n_free_seen_)
+      {
+        n_broken_seen_ = particles_->broken_bonds().size();
+        n_free_seen_   = particles_->free_particles().size();
+        for (unsigned int s = 0; s < interactions_.size(); ++s)
+          if (interactions_[s].type == Type::particles)
+            {
+              auto &flags = bonded_[s];
+              flags.resize(candidates_[s].size());
+              for (std::size_t p = 0; p < candidates_[s].size(); ++p)
+                flags[p] = bonded(candidates_[s][p][0], candidates_[s][p][1]);
+            }
+      }
 
     force_old_.swap(force_);
     std::fill(force_.begin(), force_.end(), 0.);
@@ -525,9 +585,18 @@ namespace shard::contact
           }
         else if (in.type == Type::particles)
           {
-            for (const auto &[i, j] : candidates_[s])
+            for (std::size_t p = 0; p < candidates_[s].size(); ++p)
               {
-                const SphereHit h = sphere_pair(position(i), position(j), nodes_[i].radius, nodes_[j].radius);
+                if (bonded_[s][p])
+                  continue;
+                const unsigned int i = candidates_[s][p][0], j = candidates_[s][p][1];
+                SphereHit          h = sphere_pair(position(i), position(j), nodes_[i].radius, nodes_[j].radius);
+                // Overlap a pair already had when it first met (neighbours whose bond just broke
+                // in a compressed zone) is ignored, and forgotten as the pair separates: no
+                // energy from nothing (LS-DYNA's IGNORE of initial penetrations).
+                double &offset = offset_[s][p];
+                offset         = std::min(offset < 0 ? std::max(h.overlap, 0.) : offset, std::max(h.overlap, 0.));
+                h.overlap -= offset;
                 if (h.overlap <= 0)
                   continue;
                 const double k  = in.penalty * std::min(nodes_[i].bulk, nodes_[j].bulk) *
@@ -550,7 +619,9 @@ namespace shard::contact
         else
           {
             // Per slave node the segment it penetrates least deeply (the nearest surface).
-            std::map<unsigned int, std::pair<SegmentHit, unsigned int>> best;
+            // Per slave the hit it keeps (index into hits), slaves in the order first hit.
+            std::vector<std::pair<SegmentHit, unsigned int>> hits;
+            std::vector<unsigned int>                        slaves;
             for (const auto &[i, g] : candidates_[s])
               {
                 const auto &seg = segments_[g];
@@ -560,15 +631,37 @@ namespace shard::contact
                 const SegmentHit h = point_segment(position(i), xs, nodes_[seg.node[0]].spacing);
                 if (!h.hit)
                   continue;
-                auto it = best.find(i);
-                if (it == best.end() || std::abs(h.gap) < std::abs(it->second.first.gap))
-                  best[i] = {h, g};
+                if (best_[i] < 0)
+                  {
+                    best_[i] = static_cast<int>(hits.size());
+                    hits.emplace_back(h, g);
+                    slaves.push_back(i);
+                  }
+                else if (std::abs(h.gap) < std::abs(hits[best_[i]].first.gap))
+                  hits[best_[i]] = {h, g};
               }
-            for (const auto &[i, hit] : best)
+            std::sort(slaves.begin(), slaves.end());
+            // A slave that starts a contact already deep (it slid in over the edge of a face)
+            // keeps that entry depth as an offset while the contact lasts, so that no energy
+            // comes from nothing; a contact that starts at the surface has none.
+            auto &depth = entry_depth_[s];
+            for (const unsigned int i : previous_slaves_[s])
+              if (best_[i] < 0)
+                depth[i] = -1.;
+            for (const unsigned int i : slaves)
               {
-                const auto &[h, g] = hit;
+                const double now = -hits[best_[i]].first.gap;
+                depth[i]         = depth[i] < 0 ? now : std::min(depth[i], now);
+              }
+            previous_slaves_[s] = slaves;
+            for (const unsigned int i : slaves)
+              {
+                const auto &[h, g] = hits[best_[i]];
+                best_[i]           = -1;
                 const auto  &seg   = segments_[g];
-                const double fn    = in.penalty * seg.stiffness * (-h.gap);
+                const double fn    = in.penalty * seg.stiffness * (-h.gap - depth[i]);
+                if (!(fn > 0))
+                  continue;
                 Vec3         fi{{fn * h.normal[0], fn * h.normal[1], fn * h.normal[2]}};
                 if (in.friction > 0)
                   {

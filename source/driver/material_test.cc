@@ -5,6 +5,7 @@
  *        section "Material point driver").
  */
 #include <shard/base/version.h>
+#include <shard/base/plot.h>
 #include <shard/driver/material_test.h>
 
 #include <algorithm>
@@ -18,8 +19,6 @@
 #include <stdexcept>
 #include <utility>
 
-#include <sys/wait.h>
-#include <unistd.h>
 
 namespace shard::driver
 {
@@ -68,16 +67,6 @@ namespace shard::driver
     json_number(const double x)
     {
       return std::isfinite(x) ? to_text(x + 0.) : std::string("null");
-    }
-
-    /// Quotes @p s for /bin/sh.
-    std::string
-    shell_quote(const std::string &s)
-    {
-      std::string out = "'";
-      for (const char c : s)
-        out += (c == '\'') ? std::string("'\\''") : std::string(1, c);
-      return out + "'";
     }
 
 
@@ -746,41 +735,13 @@ namespace shard::driver
 
     if (plot_)
       {
-#ifdef SHARD_SOURCE_DIR
-        const std::string script = std::string(SHARD_SOURCE_DIR) + "/contrib/utilities/plot_material_test.py";
-#else
-        const std::string script;
-#endif
-        const std::string python = "/usr/bin/python3";
-        if (script.empty() || !std::filesystem::exists(script))
-          log << "material-test: warning: no plot: the script '" << script << "' does not exist." << std::endl;
-        else if (access(python.c_str(), X_OK) != 0)
-          log << "material-test: warning: no plot: " << python << " is not available." << std::endl;
-        else
-          {
-            std::string title = material_ + " (" + material.model_name() + "): " + path_;
-            if (control_.path == LoadPath::triaxial_compression)
-              title += ", confinement " + to_text(confinement_ * 1e-6) + " MPa";
-            const std::string command = python + " " + shell_quote(script) + " " +
-                                        shell_quote(dir + "/material_test.png") + " " +
-                                        shell_quote(dir + "/history.csv") + " --title " + shell_quote(title) +
-                                        " 2>&1";
-            std::string output;
-            int         status = -1;
-            if (FILE *pipe = popen(command.c_str(), "r"))
-              {
-                char buffer[512];
-                while (std::fgets(buffer, sizeof(buffer), pipe))
-                  output += buffer;
-                status = pclose(pipe);
-              }
-            if (status != 0)
-              {
-                const int code = (status != -1 && WIFEXITED(status)) ? WEXITSTATUS(status) : -1;
-                log << "material-test: warning: plotting failed (exit " << code << "): " << command << "\n"
-                    << output << std::flush;
-              }
-          }
+        std::string title = material_ + " (" + material.model_name() + "): " + path_;
+        if (control_.path == LoadPath::triaxial_compression)
+          title += ", confinement " + to_text(confinement_ * 1e-6) + " MPa";
+        const std::string warning = base::run_plot_script(
+          "plot_material_test.py", {dir + "/material_test.png", dir + "/history.csv", "--title", title});
+        if (!warning.empty())
+          log << "material-test: warning: " << warning << std::endl;
       }
     return result;
   }

@@ -35,6 +35,10 @@ namespace shard::output
     prm.add_parameter("progress interval", progress_interval_,
                       "Wall-clock time between progress lines on stderr; 0 disables them. Unit: s. Range: >= 0.",
                       Patterns::Double(0));
+    prm.add_parameter("fragment plots", fragment_plots_,
+                      "With particles: at the end write fragments.png (cumulative mass and speed distribution "
+                      "of fragment_statistics.csv) with contrib/utilities/plot_fragments.py (/usr/bin/python3 "
+                      "and matplotlib; a failure only prints a warning).");
     prm.leave_subsection();
     return true;
   }

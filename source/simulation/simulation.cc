@@ -2,6 +2,7 @@
 #include <shard/base/function.h>
 #include <shard/base/version.h>
 #include <shard/fe/hex_kernel.h>
+#include <shard/base/plot.h>
 #include <shard/simulation/simulation.h>
 
 #include <deal.II/base/mpi.h>
@@ -320,7 +321,7 @@ namespace shard
                     conditions_.add_external_forces(t_, f_ext_);
                     bond_energy_ += w - stabilization_energy_;
                     stabilization_energy_ = w;
-                    fragments_.prepare(discretization_, hex_, particles_);
+                    fragments_stale_      = true; // prepared again at the next fragment output
                   }
               }
             const bool last = t_ >= end * (1 - 1e-12) ||
@@ -391,6 +392,13 @@ namespace shard
                           std::hypot(f.velocity[0], f.velocity[1], f.velocity[2]), f.kinetic_energy);
             out << row;
           }
+      }
+    if (rank == 0 && !last_fragments_.empty() && output_.fragment_plots())
+      {
+        const std::string warning = base::run_plot_script(
+          "plot_fragments.py", {output_.directory(), output_.directory() + "/fragments.png"});
+        if (!warning.empty())
+          std::cerr << "shard: warning: " << warning << "\n";
       }
     // Element-steps and particle-steps actually computed (conversion changes the counts).
     {
@@ -675,6 +683,9 @@ namespace shard
   {
     if (!particles_.active())
       return;
+    if (fragments_stale_)
+      fragments_.prepare(discretization_, hex_, particles_);
+    fragments_stale_     = false;
     last_fragments_      = fragments_.compute(physical_displacement(), v_now_, mass_);
     last_fragments_time_ = t_;
     if (Utilities::MPI::this_mpi_process(comm_) != 0)

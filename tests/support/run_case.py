@@ -27,7 +27,8 @@ is the key that sets the output directory (default `K - Output/directory`; for m
 histories (and fragments.csv, when written) to agree to --rel (default 1e-8) relative to max(|a|, |b|, scale), where the scale of
 an energy column is the largest energy term of the run, of a momentum component the largest
 component, of the energy error 1, and of any other column its largest magnitude.
---expect-exit K and --expect-message REGEX check a run that must fail.
+--expect-exit K and --expect-message REGEX check a run that must fail. --expect-file NAME checks
+that the run wrote NAME into its output directory (and turns the fragment plots on).
 A failure prints case, column or check, row and both values, and exits 1.
 """
 import argparse
@@ -87,6 +88,9 @@ def run_shard(args, np, outdir, extra_sets=()):
     cmd += [args.shard, args.command, case_base(args) + ".prm", "--set", f"{args.output_key}={outdir}"]
     if args.command == "run":
         cmd += ["--set", "K - Output/progress interval=0"]
+        # Plots cost a python start each; only cases that check one ask for them.
+        if not args.expect_file:
+            cmd += ["--set", "K - Output/fragment plots=false"]
     for s in list(args.set or []) + list(extra_sets):
         cmd += ["--set", s]
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
@@ -271,6 +275,8 @@ def main():
     ap.add_argument("--set", action="append")
     ap.add_argument("--expect-exit", type=int)
     ap.add_argument("--expect-message")
+    ap.add_argument("--expect-file", action="append",
+                    help="a file the run must write into its output directory (e.g. fragments.png)")
     ap.add_argument("--keep", action="store_true")
     args = ap.parse_args()
     case = os.path.basename(case_base(args))
@@ -303,6 +309,11 @@ def main():
                     print(p.stdout, p.stderr)
                     raise SystemExit(f"{case}: run failed ({p.returncode}): {' '.join(cmd)}")
                 check_case(args, out, failures)
+                for name in args.expect_file or []:
+                    ok = os.path.isfile(os.path.join(out, name)) and os.path.getsize(os.path.join(out, name)) > 0
+                    print(("ok    " if ok else "FAIL  ") + f"{case}: wrote {name}")
+                    if not ok:
+                        failures.append(f"{case}: {name} was not written")
     finally:
         if args.keep:
             print("kept", tmp)

@@ -18,6 +18,7 @@
 #include <array>
 #include <map>
 #include <set>
+#include <unordered_map>
 #include <string>
 #include <vector>
 
@@ -183,13 +184,25 @@ namespace shard::contact
     std::vector<double>       state_;             // x (3) and v (3) per node
     std::vector<double>       force_, force_old_, x_old_;
     std::vector<Vec3>         x_build_;
-    std::set<std::pair<unsigned long long, unsigned long long>> broken_;
-    std::vector<unsigned long long>                             free_;
+    /// Sizes of the broken-bond and free-particle lists when the bonded flags were set.
+    std::size_t n_broken_seen_ = 0, n_free_seen_ = 0;
     const particles::ParticleSet *particles_ = nullptr;
     dealii::types::global_dof_index n_dofs_ = 0;
     std::vector<Vec3>            radius_of_support_;
     /// Candidates per interaction: (node, segment), (node, node) or (node).
     std::vector<std::vector<std::array<unsigned int, 2>>> candidates_;
+    /// Per particle-contact candidate: 1 while the pair is bonded (no contact).
+    std::vector<std::vector<unsigned char>> bonded_;
+    /// Per particle-contact candidate: the overlap the pair had when it first met (ignored,
+    /// the smallest since; -1 before the first evaluation).
+    std::vector<std::vector<double>> offset_;
+    /// Per node-to-surface interaction and node: the penetration a slave in contact had when
+    /// its contact began (ignored, the smallest since); -1 out of contact.
+    std::vector<std::vector<double>> entry_depth_;
+    /// Per node-to-surface interaction: the slaves in contact at the last step.
+    std::vector<std::vector<unsigned int>> previous_slaves_;
+    /// Work space: per node the index of its kept hit, -1 for none.
+    std::vector<int> best_;
     unsigned int                                          last_build_ = 0;
     bool                                                  built_      = false;
     unsigned int                                          n_rebuilds_ = 0;

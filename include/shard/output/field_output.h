@@ -53,6 +53,13 @@ namespace shard::output
       return history_interval_;
     }
 
+    /// Whether the run ends with fragments.png.
+    bool
+    fragment_plots() const
+    {
+      return fragment_plots_;
+    }
+
     /// Wall-clock seconds between progress lines.
     double
     progress_interval() const
@@ -87,6 +94,7 @@ namespace shard::output
     double       interval_          = 0.;
     unsigned int history_interval_  = 1;
     double       progress_interval_ = 2.;
+    bool         fragment_plots_    = true;
     bool         declared_          = false;
 
     const mesh::Discretization                *discretization_ = nullptr;

@@ -168,5 +168,7 @@ namespace shard
     std::vector<output::Fragment> last_fragments_;
     double                        last_fragments_time_ = -1;
     bool                          fragments_started_   = false;
+    /// Bonds broke since Fragments::prepare() (it is redone at the next fragment output).
+    bool                          fragments_stale_     = false;
   };
 } // namespace shard
