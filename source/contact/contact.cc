@@ -112,10 +112,6 @@ namespace shard::contact
         const auto &s = settings_.at(name);
         if (!(s.penalty > 0))
           source.fail(top + name + "/penalty scale", std::to_string(s.penalty), "> 0.");
-        if (base::split(s.body_text, ',').empty())
-          source.fail(top + name + "/body", s.body_text, "at least one body name.");
-        if (s.type_text == "node to surface" && s.target.empty())
-          source.fail(top + name + "/target", s.target, "the name of an FE body.");
         if (s.type_text == "rigid wall")
           for (const auto &[key, text] : {std::make_pair("wall point", s.wall_point),
                                           std::make_pair("wall normal", s.wall_normal)})
@@ -156,6 +152,10 @@ namespace shard::contact
         const std::string key = "H - Contact/" + name + "/";
         s.type = s.type_text == "particles" ? Type::particles : s.type_text == "rigid wall" ? Type::rigid_wall :
                                                                                               Type::node_to_surface;
+        if (base::split(s.body_text, ',').empty())
+          source.fail(key + "body", s.body_text, "at least one body name of 'B - Mesh/body names'.");
+        if (s.type == Type::node_to_surface && s.target.empty())
+          source.fail(key + "target", s.target, "the name of an FE body.");
         for (const auto &b : base::split(s.body_text, ','))
           {
             s.bodies.push_back(body_index(b, key + "body"));
