@@ -37,6 +37,18 @@ namespace shard::particles
       return det;
     }
 
+    /// V P = scale (sigma - q I) F^-T with scale = V J (row-major 3x3 into @p vp); sigma as
+    /// (xx, yy, zz, yz, xz, xy), @p F_inv row-major.
+    void
+    volume_times_piola(const double *sig, const double q, const double *F_inv, const double scale, double *vp)
+    {
+      const double s[3][3] = {{sig[0] - q, sig[5], sig[4]}, {sig[5], sig[1] - q, sig[3]}, {sig[4], sig[3], sig[2] - q}};
+      for (unsigned int a = 0; a < 3; ++a)
+        for (unsigned int b = 0; b < 3; ++b)
+          vp[3 * a + b] =
+            scale * (s[a][0] * F_inv[3 * b] + s[a][1] * F_inv[3 * b + 1] + s[a][2] * F_inv[3 * b + 2]);
+    }
+
     /**
      * Smallest principal stretch of F: the square root of the smallest eigenvalue of C = F^T F
      * (closed form for symmetric 3x3 matrices). It scales the particle spacing for the stable
@@ -345,14 +357,7 @@ namespace shard::particles
       {
         double       Fi[9];
         const double J   = invert(&F_[9 * i], Fi);
-        const double *sg = &stress_[6 * i];
-        const double q   = q_[i];
-        const double s[3][3] = {{sg[0] - q, sg[5], sg[4]}, {sg[5], sg[1] - q, sg[3]}, {sg[4], sg[3], sg[2] - q}};
-        const double scale   = particles_->volume(i) * J;
-        double      *vp      = &VP_[9 * i];
-        for (unsigned int a = 0; a < 3; ++a)
-          for (unsigned int b = 0; b < 3; ++b)
-            vp[3 * a + b] = scale * (s[a][0] * Fi[3 * b] + s[a][1] * Fi[3 * b + 1] + s[a][2] * Fi[3 * b + 2]);
+        volume_times_piola(&stress_[6 * i], q_[i], Fi, particles_->volume(i) * J, &VP_[9 * i]);
       }
     std::fill(fk_.begin(), fk_.end(), 0.);
     op_.subtract_internal_force(VP_.data(), fk_.data());
@@ -562,15 +567,7 @@ namespace shard::particles
               const double qratio  = bulk_q1_ - (trd < 0 && dt > 0 ? bulk_q2_ * spacing * trd / dt / c[k] : 0.);
               result.stable_dt =
                 std::min(result.stable_dt, spacing / (c[k] * (std::sqrt(1 + qratio * qratio) + qratio)));
-              // V P = V J (sigma - q I) F^-T.
-              const double *Fi = &F_inv[9 * k];
-              const double s[3][3] = {
-                {sig[0] - q, sig[5], sig[4]}, {sig[5], sig[1] - q, sig[3]}, {sig[4], sig[3], sig[2] - q}};
-              const double scale   = particles_->volume(i) * J[k];
-              double      *vp      = &VP_[9 * i];
-              for (unsigned int a = 0; a < 3; ++a)
-                for (unsigned int b = 0; b < 3; ++b)
-                  vp[3 * a + b] = scale * (s[a][0] * Fi[3 * b] + s[a][1] * Fi[3 * b + 1] + s[a][2] * Fi[3 * b + 2]);
+              volume_times_piola(sig, q, &F_inv[9 * k], particles_->volume(i) * J[k], &VP_[9 * i]);
             }
         }
     std::fill(fk_.begin(), fk_.end(), 0.);

@@ -87,8 +87,8 @@ namespace shard
   {
     source_ = source;
     base::read_parameters(prm_,
-                          {this, &discretization_, &materials_, &particles_, &bonds_, &conversion_, &contact_, &hex_, &spg_, &conditions_,
-                           &integrator_, &output_, &quantities_},
+                          {this, &discretization_, &materials_, &particles_, &bonds_, &conversion_, &contact_, &hex_,
+                           &spg_, &conditions_, &integrator_, &output_, &quantities_},
                           source_);
   }
 
@@ -308,7 +308,8 @@ namespace shard
                 const auto [broken, freed] = bonds_.update(discretization_, particles_, spg_, bond_values_);
                 if (broken + freed > 0)
                   {
-                    // The kick uses the forces of the new stencils.
+                    // The kick uses the forces of the new stencils (f_ext_ serves as work space
+                    // for the change, then holds the loads again).
                     f_ext_ = 0;
                     const double w = spg_.refresh_forces(d_, f_ext_);
                     f_ext_.compress(VectorOperation::add);
