@@ -15,6 +15,8 @@ namespace shard::contact
   {
     /// Doubles per node in the set-up table.
     constexpr unsigned int node_record = 13;
+    /// Doubles per segment in the set-up table: 4 node DOFs, stiffness, body, spacing.
+    constexpr unsigned int segment_record = 7;
     /// Doubles per node in the step exchange: x and v.
     constexpr unsigned int state_record = 6;
 
@@ -219,7 +221,7 @@ namespace shard::contact
           add_node(pt.local_to_global(particles.local_dof(i)), particles.body(i), std::min({h[0], h[1], h[2]}), true,
                    support);
         }
-    std::vector<double> segment_table; // 4 node DOFs, stiffness, body
+    std::vector<double> segment_table; // 4 node DOFs, stiffness, body, spacing
     for (const auto &cell : discretization.dof_handler().active_cell_iterators())
       {
         if (!cell->is_locally_owned() || converted_cells[cell->active_cell_index()] ||
@@ -251,17 +253,25 @@ namespace shard::contact
               }
             segment_table.push_back(area * area / volume * bulk_of(b));
             segment_table.push_back(b);
+            segment_table.push_back(h);
           }
       }
     // Particle bodies' nodes on intact cells are FE nodes; those of converted cells were added
     // as particles above.
 
-    // Gather: nodes in rank order (each rank's nodes sorted by DOF), then segments.
+    // Segments first: a face node may be owned by a rank that owns no face with it; the owner
+    // adds it from the gathered segments. Then the nodes, in rank order (each rank's sorted by
+    // DOF).
+    const auto all_segments = Utilities::MPI::all_gather(comm_, segment_table);
+    for (const auto &part : all_segments)
+      for (std::size_t p = 0; p < part.size(); p += segment_record)
+        for (unsigned int v = 0; v < 4; ++v)
+          add_node(static_cast<types::global_dof_index>(part[p + v]), static_cast<unsigned int>(part[p + 5]),
+                   part[p + 6], false, Vec3{{0, 0, 0}});
     std::vector<double> flat;
     for (const auto &[g, r] : mine)
       flat.insert(flat.end(), r.begin(), r.end());
-    const auto all_nodes    = Utilities::MPI::all_gather(comm_, flat);
-    const auto all_segments = Utilities::MPI::all_gather(comm_, segment_table);
+    const auto all_nodes = Utilities::MPI::all_gather(comm_, flat);
     const unsigned int rank = Utilities::MPI::this_mpi_process(comm_);
     nodes_.clear();
     counts_.assign(all_nodes.size(), 0);
@@ -296,7 +306,7 @@ namespace shard::contact
       owned_local_dof_.push_back(pt.global_to_local(g));
     segments_.clear();
     for (const auto &part : all_segments)
-      for (std::size_t p = 0; p < part.size(); p += 6)
+      for (std::size_t p = 0; p < part.size(); p += segment_record)
         {
           Segment s;
           for (unsigned int v = 0; v < 4; ++v)
