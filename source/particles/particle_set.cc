@@ -311,6 +311,7 @@ namespace shard::particles
     // Compact arrays for rebuilding rows after bonds break; bonds broken before this rebuild
     // (conversion during the run) stay broken.
     compact_id_.resize(stencils_.n_k);
+    compact_of_.clear();
     compact_position_.resize(stencils_.n_k);
     compact_radius_.resize(stencils_.n_k);
     for (unsigned int k = 0; k < stencils_.n_k; ++k)
@@ -418,13 +419,16 @@ namespace shard::particles
           }
       }
     constexpr unsigned int none = ~0u;
-    std::unordered_map<unsigned long long, unsigned int> compact;
-    compact.reserve(compact_id_.size());
-    for (unsigned int k = 0; k < compact_id_.size(); ++k)
-      compact.emplace(compact_id_[k], k);
+    if (compact_of_.size() != compact_id_.size())
+      {
+        compact_of_.clear();
+        compact_of_.reserve(compact_id_.size());
+        for (unsigned int k = 0; k < compact_id_.size(); ++k)
+          compact_of_.emplace(compact_id_[k], k);
+      }
     const auto find = [&](const unsigned long long id) {
-      const auto it = compact.find(id);
-      return it == compact.end() ? none : it->second;
+      const auto it = compact_of_.find(id);
+      return it == compact_of_.end() ? none : it->second;
     };
     // Clears the entry of column @p column in row @p row of @p s, if there is one.
     const auto clear = [](const Stencil &s, std::vector<unsigned char> &intact, const unsigned int row,

@@ -13,6 +13,7 @@
 #include <shard/particles/spg_operator.h>
 
 #include <string>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -281,6 +282,8 @@ namespace shard::particles
     unsigned int                    n_components_ = 0;
     /// Per compact coefficient K: global id, reference position, support radii.
     std::vector<unsigned long long> compact_id_;
+    /// Compact index by global id (built at the first break after prepare()).
+    std::unordered_map<unsigned long long, unsigned int> compact_of_;
     std::vector<Point3>             compact_position_, compact_radius_;
     /// Per A row: 1 when it is an identity (interpolating) row.
     std::vector<unsigned char> a_identity_;
