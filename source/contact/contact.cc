@@ -20,18 +20,6 @@ namespace shard::contact
     /// Doubles per node in the step exchange: x and v.
     constexpr unsigned int state_record = 6;
 
-    Vec3
-    parse_point(const std::string &text)
-    {
-      const auto parts = base::split(text, ',');
-      if (parts.size() != 3)
-        throw std::invalid_argument("three numbers separated by ',' expected");
-      Vec3 p;
-      for (unsigned int k = 0; k < 3; ++k)
-        p[k] = std::stod(parts[k]);
-      return p;
-    }
-
     double
     norm(const Vec3 &a)
     {
@@ -120,13 +108,13 @@ namespace shard::contact
             {
               try
                 {
-                  const Vec3 p = parse_point(text);
+                  const Vec3 p = base::parse_point(text);
                   if (std::string(key) == "wall normal" && !(norm(p) > 0))
                     source.fail(top + name + "/" + key, text, "a nonzero vector.");
                 }
-              catch (const std::invalid_argument &)
+              catch (const std::invalid_argument &e)
                 {
-                  source.fail(top + name + "/" + key, text, "three numbers separated by ','.");
+                  source.fail(top + name + "/" + key, text, std::string(e.what()) + ".");
                 }
             }
       }
@@ -172,8 +160,8 @@ namespace shard::contact
           }
         if (s.type == Type::rigid_wall)
           {
-            s.point  = parse_point(s.wall_point);
-            s.normal = parse_point(s.wall_normal);
+            s.point  = base::parse_point(s.wall_point);
+            s.normal = base::parse_point(s.wall_normal);
             const double l = norm(s.normal);
             for (auto &c : s.normal)
               c /= l;
@@ -294,13 +282,12 @@ namespace shard::contact
             n.spacing = a[7];
             n.body    = static_cast<unsigned int>(a[8]);
             n.particle = a[9] > 0;
+            n.support  = Vec3{{a[10], a[11], a[12]}};
             index_of[n.dof] = nodes_.size();
             nodes_.push_back(n);
-            radius_of_support_.push_back(Vec3{{a[10], a[11], a[12]}});
           }
         counts_[r] = state_record * nodes_.size() - displs_[r];
       }
-    radius_of_support_.resize(nodes_.size());
     owned_local_dof_.clear();
     for (const auto &[g, r] : mine)
       owned_local_dof_.push_back(pt.global_to_local(g));
@@ -399,7 +386,7 @@ namespace shard::contact
     // A bond: one particle inside the other's (box) support.
     const auto inside = [&](const unsigned int i, const Node &other) {
       for (unsigned int c = 0; c < 3; ++c)
-        if (std::abs(other.X[c] - nodes_[i].X[c]) >= radius_of_support_[i][c])
+        if (std::abs(other.X[c] - nodes_[i].X[c]) >= nodes_[i].support[c])
           return false;
       return true;
     };

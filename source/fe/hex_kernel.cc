@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/fe/hex_kernel.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 
@@ -131,5 +132,42 @@ namespace shard::fe
     s[3] = R[1][2];
     s[4] = R[0][2];
     s[5] = R[0][1];
+  }
+
+  std::array<double, 3>
+  symmetric_eigenvalues(const double *s)
+  {
+    const double p1 = s[3] * s[3] + s[4] * s[4] + s[5] * s[5];
+    if (p1 == 0)
+      {
+        std::array<double, 3> d{{s[0], s[1], s[2]}};
+        std::sort(d.begin(), d.end());
+        return d;
+      }
+    const double m = (s[0] + s[1] + s[2]) / 3.;
+    const double a = s[0] - m, b = s[1] - m, c = s[2] - m;
+    const double p2 = a * a + b * b + c * c + 2. * p1;
+    if (p2 <= 1e-30 * m * m)
+      return {{m, m, m}};
+    const double p = std::sqrt(p2 / 6.);
+    // det(S - m I) / (2 p^3), the cosine of three times the angle.
+    const double det = a * (b * c - s[3] * s[3]) - s[5] * (s[5] * c - s[3] * s[4]) + s[4] * (s[5] * s[3] - b * s[4]);
+    const double phi = std::acos(std::clamp(det / (2. * p * p * p), -1., 1.)) / 3.;
+    // m + 2 p cos(phi + 2 pi k / 3): k = 0 the largest, k = 1 the smallest.
+    const double largest = m + 2. * p * std::cos(phi), smallest = m + 2. * p * std::cos(phi + 2. * M_PI / 3.);
+    return {{smallest, 3. * m - largest - smallest, largest}};
+  }
+
+  std::array<double, 3>
+  principal_stretches(const double *F)
+  {
+    const auto c = [F](const unsigned int a, const unsigned int b) {
+      return F[a] * F[b] + F[3 + a] * F[3 + b] + F[6 + a] * F[6 + b];
+    };
+    const double C[6] = {c(0, 0), c(1, 1), c(2, 2), c(1, 2), c(0, 2), c(0, 1)};
+    auto         l    = symmetric_eigenvalues(C);
+    for (auto &x : l)
+      x = std::sqrt(std::max(x, 0.));
+    return l;
   }
 } // namespace shard::fe

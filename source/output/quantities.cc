@@ -315,10 +315,9 @@ namespace shard::output
     const auto          comm = discretization_->communicator();
     std::vector<double> sums, maxima;
     // 0 sum, 1 max, 2 min (stored negated in maxima), 3 ratio of sums in ratios,
-    // 4 root of a mass-weighted mean (numerator and denominator in l2)
+    // 4 root of a mass-weighted mean, 6 a mass-weighted mean (numerator and denominator in l2)
     std::vector<int>    mode;
     std::vector<double> ratios, l2, range_parts;
-    std::vector<bool>   l2_mean; // per l2 entry: a mean (mean_velocity) instead of an RMS (l2_error)
     for (const auto &it : items_)
       {
         double value = 0;
@@ -457,10 +456,6 @@ namespace shard::output
         sums.push_back(m == 0 ? value : 0.);
         if (m >= 3 && m != 5)
           m = 0;
-        if (mode.back() == 6)
-          mode.back() = 4, l2_mean.push_back(true);
-        else if (mode.back() == 4)
-          l2_mean.push_back(false);
         if (m == 5)
           {
             mode.back() = 5;
@@ -487,11 +482,10 @@ namespace shard::output
           const double *s = &ratios[4 * r++];
           out[i]          = s[3] > 0 ? std::sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]) / s[3] : 0.;
         }
-      else if (mode[i] == 4)
+      else if (mode[i] == 4 || mode[i] == 6)
         {
-          const bool    mean = l2_mean[e];
-          const double *s    = &l2[2 * e++];
-          out[i]             = s[1] > 0 ? (mean ? s[0] / s[1] : std::sqrt(s[0] / s[1])) : 0.;
+          const double *s = &l2[2 * e++];
+          out[i]          = s[1] > 0 ? (mode[i] == 6 ? s[0] / s[1] : std::sqrt(s[0] / s[1])) : 0.;
         }
       else
         out[i] = mode[i] == 0 ? sums[i] : mode[i] == 1 ? maxima[i] : -maxima[i];

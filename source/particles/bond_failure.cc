@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/fe/hex_kernel.h>
 #include <shard/particles/bond_failure.h>
 
 #include <deal.II/base/mpi.h>
@@ -41,22 +42,6 @@ namespace shard::particles
       return all;
     }
   } // namespace
-
-  double
-  largest_eigenvalue(const double *s)
-  {
-    // Trigonometric solution of the characteristic equation of the symmetric tensor.
-    const double p1 = s[3] * s[3] + s[4] * s[4] + s[5] * s[5];
-    const double m  = (s[0] + s[1] + s[2]) / 3.;
-    if (p1 == 0)
-      return std::max({s[0], s[1], s[2]});
-    const double a = s[0] - m, b = s[1] - m, c = s[2] - m;
-    const double p = std::sqrt((a * a + b * b + c * c + 2. * p1) / 6.);
-    // det((S - m I) / p) / 2
-    const double det = a * (b * c - s[3] * s[3]) - s[5] * (s[5] * c - s[3] * s[4]) + s[4] * (s[5] * s[3] - b * s[4]);
-    const double r   = std::clamp(det / (2. * p * p * p), -1., 1.);
-    return m + 2. * p * std::cos(std::acos(r) / 3.);
-  }
 
   BondFailure::BondFailure(const materials::MaterialLibrary &library)
     : library_(library)
@@ -188,18 +173,9 @@ namespace shard::particles
         case BondCriterion::scaled_damage:
           return spg.state(i)[slot_[i]] / threshold_[i];
         case BondCriterion::principal_stress:
-          return largest_eigenvalue(spg.stress(i)) / threshold_[i];
+          return fe::symmetric_eigenvalues(spg.stress(i))[2] / threshold_[i];
         case BondCriterion::principal_strain:
-          {
-            const double *F = spg.deformation_gradient(i);
-            double        C[6];
-            // C = F^T F in (xx, yy, zz, yz, xz, xy).
-            const auto cij = [F](const unsigned int a, const unsigned int b) {
-              return F[a] * F[b] + F[3 + a] * F[3 + b] + F[6 + a] * F[6 + b];
-            };
-            C[0] = cij(0, 0), C[1] = cij(1, 1), C[2] = cij(2, 2), C[3] = cij(1, 2), C[4] = cij(0, 2), C[5] = cij(0, 1);
-            return (std::sqrt(std::max(largest_eigenvalue(C), 0.)) - 1.) / threshold_[i];
-          }
+          return (fe::principal_stretches(spg.deformation_gradient(i))[2] - 1.) / threshold_[i];
         case BondCriterion::none:
           break;
       }

@@ -49,33 +49,13 @@ namespace shard::particles
             scale * (s[a][0] * F_inv[3 * b] + s[a][1] * F_inv[3 * b + 1] + s[a][2] * F_inv[3 * b + 2]);
     }
 
-    /**
-     * Smallest principal stretch of F: the square root of the smallest eigenvalue of C = F^T F
-     * (closed form for symmetric 3x3 matrices). It scales the particle spacing for the stable
-     * step: under isochoric crushing J^(1/3) stays near 1 while the spacing along the crushing
-     * direction shrinks.
-     */
+    /// Smallest principal stretch of F. It scales the particle spacing for the stable step:
+    /// under isochoric crushing J^(1/3) stays near 1 while the spacing along the crushing
+    /// direction shrinks.
     double
     smallest_stretch(const double *F)
     {
-      double C[3][3];
-      for (unsigned int a = 0; a < 3; ++a)
-        for (unsigned int b = 0; b < 3; ++b)
-          C[a][b] = F[a] * F[b] + F[3 + a] * F[3 + b] + F[6 + a] * F[6 + b];
-      const double p1 = C[0][1] * C[0][1] + C[0][2] * C[0][2] + C[1][2] * C[1][2];
-      const double q  = (C[0][0] + C[1][1] + C[2][2]) / 3.;
-      const double a0 = C[0][0] - q, a1 = C[1][1] - q, a2 = C[2][2] - q;
-      const double p2 = a0 * a0 + a1 * a1 + a2 * a2 + 2 * p1;
-      if (p2 <= 1e-30 * q * q)
-        return std::sqrt(std::max(q, 0.));
-      const double p   = std::sqrt(p2 / 6.);
-      const double det = a0 * (a1 * a2 - C[1][2] * C[1][2]) - C[0][1] * (C[0][1] * a2 - C[1][2] * C[0][2]) +
-                         C[0][2] * (C[0][1] * C[1][2] - a1 * C[0][2]);
-      const double r   = std::clamp(det / (2 * p * p * p), -1., 1.);
-      const double phi = std::acos(r) / 3.;
-      // Eigenvalues q + 2 p cos(phi + 2 pi k / 3); the smallest is k = 1.
-      const double smallest = q + 2 * p * std::cos(phi + 2. * M_PI / 3.);
-      return std::sqrt(std::max(smallest, 0.));
+      return fe::principal_stretches(F)[0];
     }
   } // namespace
 
@@ -334,13 +314,19 @@ namespace shard::particles
   {
     if (!active_)
       return 0.;
-    gather(d, dk_);
-    op_.displacement(dk_.data(), u_.data());
-    op_.deformation_gradient(u_.data(), F_.data());
+    set_kinematics(d);
     if (options_.stabilization != Stabilization::residual)
       return 0.;
     std::fill(fk_.begin(), fk_.end(), 0.);
     return op_.subtract_residual_force(dk_.data(), fk_.data());
+  }
+
+  void
+  SpgForce::set_kinematics(const mesh::Vector &d)
+  {
+    gather(d, dk_);
+    op_.displacement(dk_.data(), u_.data());
+    op_.deformation_gradient(u_.data(), F_.data());
   }
 
   double
@@ -349,9 +335,7 @@ namespace shard::particles
     if (!active_)
       return 0.;
     const std::vector<double> old = fk_;
-    gather(d, dk_);
-    op_.displacement(dk_.data(), u_.data());
-    op_.deformation_gradient(u_.data(), F_.data());
+    set_kinematics(d);
     // V P = V J (sigma - q I) F^-T from the stored stress and bulk viscosity.
     for (unsigned int i = 0; i < n_owned(); ++i)
       {

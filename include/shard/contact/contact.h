@@ -152,6 +152,8 @@ namespace shard::contact
     {
       unsigned long long dof = 0; // global DOF of the x component
       Vec3               X{};
+      /// Support radii of a particle's RK functions (a bond reaches that far), 0 for FE nodes.
+      Vec3               support{};
       double             mass = 0, radius = 0, bulk = 0, spacing = 0;
       unsigned int       body = 0;
       bool               particle = false;
@@ -188,7 +190,6 @@ namespace shard::contact
     std::size_t n_broken_seen_ = 0, n_free_seen_ = 0;
     const particles::ParticleSet *particles_ = nullptr;
     dealii::types::global_dof_index n_dofs_ = 0;
-    std::vector<Vec3>            radius_of_support_;
     /// Candidates per interaction: (node, segment), (node, node) or (node).
     std::vector<std::vector<std::array<unsigned int, 2>>> candidates_;
     /// Per particle-contact candidate: 1 while the pair is bonded (no contact).

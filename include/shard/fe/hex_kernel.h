@@ -9,6 +9,8 @@
  */
 #pragma once
 
+#include <array>
+
 namespace shard::fe
 {
   /**
@@ -54,4 +56,16 @@ namespace shard::fe
   /// Rotates a symmetric tensor in 6-component storage: s <- Q s Q^T.
   void
   rotate_symmetric(const double (&Q)[3][3], double *s);
+
+  /**
+   * @brief Eigenvalues of a symmetric tensor in 6-component storage (xx, yy, zz, yz, xz, xy),
+   * ascending, by the trigonometric solution of the characteristic equation (exact for a
+   * diagonal tensor; all equal to the mean when the deviator is below 1e-15 of it).
+   */
+  std::array<double, 3>
+  symmetric_eigenvalues(const double *s);
+
+  /// Principal stretches of F (row-major): square roots of the eigenvalues of F^T F, ascending.
+  std::array<double, 3>
+  principal_stretches(const double *F);
 } // namespace shard::fe

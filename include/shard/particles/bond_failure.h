@@ -162,7 +162,4 @@ namespace shard::particles
     evaluate(const SpgForce &spg, unsigned int i) const;
   };
 
-  /// Largest eigenvalue of a symmetric 3x3 tensor given as (xx, yy, zz, yz, xz, xy).
-  double
-  largest_eigenvalue(const double *s);
 } // namespace shard::particles

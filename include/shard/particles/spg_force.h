@@ -254,6 +254,9 @@ namespace shard::particles
 
     void
     gather(const mesh::Vector &v, std::vector<double> &out) const;
+    /// u = A d and the stored F from the coefficients @p d (ghost values set).
+    void
+    set_kinematics(const mesh::Vector &d);
 
     /// Solves for the consistent gradient correction and writes G + C into the stencils of
     /// @p particles, which the operator reads (collective).
