@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <sstream>
 
 namespace shard::contact
@@ -307,14 +308,18 @@ namespace shard::contact
     force_old_.assign(3 * nodes_.size(), 0.);
     x_old_.clear();
     candidates_.assign(interactions_.size(), {});
-    bonded_.assign(interactions_.size(), {});
+    dormant_.assign(interactions_.size(), {});
     offset_.assign(interactions_.size(), {});
     entry_depth_.assign(interactions_.size(), std::vector<double>(nodes_.size(), -1.));
+    plane_stamp_.clear();
+    planes_.clear();
     best_.assign(nodes_.size(), -1);
     previous_slaves_.assign(interactions_.size(), {});
     built_ = false;
-    n_broken_seen_ = particles.broken_bonds().size();
-    n_free_seen_   = particles.free_particles().size();
+    node_of_particle_.clear();
+    for (unsigned int i = 0; i < nodes_.size(); ++i)
+      if (nodes_[i].particle)
+        node_of_particle_.emplace(nodes_[i].dof / 3, i);
 
     // Skin and the critical step of the stiffest spring each node can meet.
     double smallest = 1e300;
@@ -370,6 +375,40 @@ namespace shard::contact
                    displs_.data(), MPI_DOUBLE, comm_);
   }
 
+  Contact::Plane
+  Contact::mean_plane(const std::array<Vec3, 4> &x)
+  {
+    Plane p;
+    for (unsigned int c = 0; c < 3; ++c)
+      p.centre[c] = 0.25 * (x[0][c] + x[1][c] + x[2][c] + x[3][c]);
+    const Vec3 d1{{x[2][0] - x[0][0], x[2][1] - x[0][1], x[2][2] - x[0][2]}};
+    const Vec3 d2{{x[3][0] - x[1][0], x[3][1] - x[1][1], x[3][2] - x[1][2]}};
+    p.normal = Vec3{{d1[1] * d2[2] - d1[2] * d2[1], d1[2] * d2[0] - d1[0] * d2[2], d1[0] * d2[1] - d1[1] * d2[0]}};
+    const double length = norm(p.normal);
+    if (!(length > 0))
+      return p;
+    double extent = 0;
+    for (auto &c : p.normal)
+      c /= length;
+    for (unsigned int a = 0; a < 4; ++a)
+      {
+        const Vec3 &xa = x[a], &xb = x[(a + 1) % 4];
+        const Vec3  r{{xa[0] - p.centre[0], xa[1] - p.centre[1], xa[2] - p.centre[2]}};
+        p.half_width = std::max(p.half_width, std::abs(r[0] * p.normal[0] + r[1] * p.normal[1] + r[2] * p.normal[2]));
+        extent       = std::max(extent, norm(r));
+        // Triangle (xa, xb, centre), as point_segment takes it: its normal must face n.
+        const Vec3 e1{{xb[0] - xa[0], xb[1] - xa[1], xb[2] - xa[2]}};
+        const Vec3 e2{{p.centre[0] - xa[0], p.centre[1] - xa[1], p.centre[2] - xa[2]}};
+        const Vec3 nt{{e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]}};
+        if (!(nt[0] * p.normal[0] + nt[1] * p.normal[1] + nt[2] * p.normal[2] > 0))
+          return p;
+      }
+    // Margin for the edge tolerance of point_segment (barycentric coordinates down to -1e-3).
+    p.half_width += 0.01 * extent;
+    p.usable = true;
+    return p;
+  }
+
   bool
   Contact::bonded(const unsigned int a, const unsigned int b) const
   {
@@ -394,7 +433,60 @@ namespace shard::contact
   }
 
   void
-  Contact::build_candidates(const unsigned int step)
+  Contact::wake_broken_pairs()
+  {
+    const auto &broken = particles_->broken_bonds();
+    const auto &free   = particles_->free_particles();
+    if (broken.size() == seen_broken_.size() && free.size() == seen_free_.size())
+      return;
+    std::vector<std::pair<unsigned long long, unsigned long long>> new_bonds;
+    std::vector<unsigned long long>                                  new_free;
+    std::set_difference(broken.begin(), broken.end(), seen_broken_.begin(), seen_broken_.end(),
+                        std::back_inserter(new_bonds));
+    std::set_difference(free.begin(), free.end(), seen_free_.begin(), seen_free_.end(), std::back_inserter(new_free));
+    seen_broken_ = broken;
+    seen_free_   = free;
+    const auto node = [&](const unsigned long long id) {
+      const auto it = node_of_particle_.find(id);
+      return it == node_of_particle_.end() ? ~0u : it->second;
+    };
+    for (unsigned int s = 0; s < interactions_.size(); ++s)
+      {
+        if (interactions_[s].type != Type::particles)
+          continue;
+        Dormant   &dormant = dormant_[s];
+        const auto wake    = [&](const unsigned int p) {
+          if (dormant.woken[p])
+            return;
+          dormant.woken[p] = 1;
+          candidates_[s].push_back(dormant.pairs[p]);
+          offset_[s].push_back(-1.);
+        };
+        for (const auto &[a, b] : new_bonds)
+          {
+            const unsigned int i = node(a), j = node(b);
+            if (i == ~0u || j == ~0u || dormant.offsets.empty())
+              continue;
+            for (unsigned int t = dormant.offsets[i]; t < dormant.offsets[i + 1]; ++t)
+              {
+                const auto &pair = dormant.pairs[dormant.of_node[t]];
+                if (pair[0] == j || pair[1] == j)
+                  wake(dormant.of_node[t]);
+              }
+          }
+        for (const unsigned long long id : new_free)
+          {
+            const unsigned int i = node(id);
+            if (i == ~0u || dormant.offsets.empty())
+              continue;
+            for (unsigned int t = dormant.offsets[i]; t < dormant.offsets[i + 1]; ++t)
+              wake(dormant.of_node[t]);
+          }
+      }
+  }
+
+  void
+  Contact::build_candidates(const unsigned int step, const double dt)
   {
     ++n_rebuilds_;
     last_build_ = step;
@@ -404,11 +496,22 @@ namespace shard::contact
     for (unsigned int i = 0; i < n; ++i)
       x[i] = Vec3{{state_[state_record * i], state_[state_record * i + 1], state_[state_record * i + 2]}};
     x_build_ = x;
+    // Reach of each node until the next build: half the skin, or what it covers in
+    // reach_steps steps at its present speed if more (fast debris). A pair or a segment is a
+    // candidate when the two reaches together could close its distance; the list stays
+    // complete while no node has moved more than its reach (the rebuild rule).
+    const double base = 0.5 * skin_used_;
+    reach_.resize(n);
+    for (unsigned int i = 0; i < n; ++i)
+      {
+        const double *v = &state_[state_record * i + 3];
+        reach_[i]       = std::max(base, reach_steps * dt * std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]));
+      }
     double largest_radius = 0;
     for (const auto &p : nodes_)
       largest_radius = std::max(largest_radius, p.radius);
     BinGrid grid;
-    grid.build(x, std::max(2. * largest_radius + skin_used_, skin_used_));
+    grid.build(x, 2. * largest_radius + 2. * base);
     for (unsigned int s = 0; s < interactions_.size(); ++s)
       {
         const auto &in = interactions_[s];
@@ -420,71 +523,140 @@ namespace shard::contact
         if (in.type == Type::rigid_wall)
           {
             for (unsigned int i = 0; i < n; ++i)
-              if (member(i, in.bodies) && plane_gap(x[i], in.point, in.normal) < skin_used_)
+              if (member(i, in.bodies) && plane_gap(x[i], in.point, in.normal) < 2. * reach_[i])
                 cand.push_back({{i, 0u}});
           }
         else if (in.type == Type::particles)
           {
+            Dormant &dormant = dormant_[s];
+            dormant          = Dormant();
             for (unsigned int i = 0; i < n; ++i)
               {
                 if (!nodes_[i].particle || !member(i, in.bodies))
                   continue;
-                const double r = 2. * largest_radius + skin_used_;
+                // Each pair is found from the node of larger reach (the smaller index on a tie),
+                // whose box covers both reaches.
+                const double r = nodes_[i].radius + largest_radius + 2. * reach_[i];
                 grid.for_each_in_box(Vec3{{x[i][0] - r, x[i][1] - r, x[i][2] - r}},
                                      Vec3{{x[i][0] + r, x[i][1] + r, x[i][2] + r}}, [&](const unsigned int j) {
-                                       if (j <= i || !nodes_[j].particle || !member(j, in.bodies))
+                                       if (j == i || reach_[j] > reach_[i] || (reach_[j] == reach_[i] && j < i) ||
+                                           !nodes_[j].particle || !member(j, in.bodies))
                                          return;
                                        Vec3 dx{{x[j][0] - x[i][0], x[j][1] - x[i][1], x[j][2] - x[i][2]}};
-                                       if (norm(dx) < nodes_[i].radius + nodes_[j].radius + skin_used_)
-                                         cand.push_back({{i, j}});
+                                       if (norm(dx) >= nodes_[i].radius + nodes_[j].radius + reach_[i] + reach_[j])
+                                         return;
+                                       const unsigned int a = std::min(i, j), b = std::max(i, j);
+                                       if (!bonded(a, b))
+                                         cand.push_back({{a, b}});
+                                       else
+                                         dormant.pairs.push_back({{a, b}});
                                      });
               }
+            dormant.woken.assign(dormant.pairs.size(), 0);
+            dormant.offsets.assign(n + 1, 0);
+            for (const auto &pair : dormant.pairs)
+              ++dormant.offsets[pair[0] + 1], ++dormant.offsets[pair[1] + 1];
+            for (unsigned int i = 0; i < n; ++i)
+              dormant.offsets[i + 1] += dormant.offsets[i];
+            dormant.of_node.resize(dormant.offsets[n]);
+            std::vector<unsigned int> next(dormant.offsets.begin(), dormant.offsets.end() - 1);
+            for (unsigned int p = 0; p < dormant.pairs.size(); ++p)
+              for (const unsigned int i : dormant.pairs[p])
+                dormant.of_node[next[i]++] = p;
           }
         else
           {
             // Each segment of the target (and of the bodies when symmetric) against the nodes
-            // of the other side near its box.
+            // of the other side near its box: the slow nodes (reach = skin/2) from the
+            // segment's side through the node grid, the fast ones from their own side through
+            // a grid of the segment centres.
+            struct Box
+            {
+              Vec3   lo, hi, centre, normal;
+              double length = 0, depth = 0, reach = 0, extent = 0;
+              bool   forward = false;
+            };
+            std::vector<Box>          boxes;
+            std::vector<unsigned int> used;
             for (unsigned int g = 0; g < segments_.size(); ++g)
               {
                 const auto &seg = segments_[g];
-                const bool  forward  = seg.body == in.target_body;
+                Box         b;
+                b.forward            = seg.body == in.target_body;
                 const bool  backward = in.symmetric && member(seg.node[0], in.bodies);
-                if (!forward && !backward)
+                if (!b.forward && !backward)
                   continue;
-                Vec3 lo = x[seg.node[0]], hi = lo;
+                b.lo = b.hi = x[seg.node[0]];
+                b.centre    = Vec3{{0, 0, 0}};
                 for (const unsigned int v : seg.node)
-                  for (unsigned int c = 0; c < 3; ++c)
-                    lo[c] = std::min(lo[c], x[v][c]), hi[c] = std::max(hi[c], x[v][c]);
-                const double depth = nodes_[seg.node[0]].spacing;
-                const double r     = skin_used_ + depth;
+                  {
+                    b.reach = std::max(b.reach, reach_[v]);
+                    for (unsigned int c = 0; c < 3; ++c)
+                      {
+                        b.lo[c] = std::min(b.lo[c], x[v][c]), b.hi[c] = std::max(b.hi[c], x[v][c]);
+                        b.centre[c] += 0.25 * x[v][c];
+                      }
+                  }
                 for (unsigned int c = 0; c < 3; ++c)
-                  lo[c] -= r, hi[c] += r;
-                // Only nodes within the slab -depth - skin < (x - c) . n < skin of the segment's
-                // plane can touch it before the next rebuild.
-                Vec3 centre{{0, 0, 0}};
-                for (const unsigned int v : seg.node)
-                  for (unsigned int c = 0; c < 3; ++c)
-                    centre[c] += 0.25 * x[v][c];
+                  b.extent = std::max({b.extent, b.hi[c] - b.centre[c], b.centre[c] - b.lo[c]});
+                b.depth = nodes_[seg.node[0]].spacing;
                 const Vec3 e1{{x[seg.node[2]][0] - x[seg.node[0]][0], x[seg.node[2]][1] - x[seg.node[0]][1],
                                x[seg.node[2]][2] - x[seg.node[0]][2]}};
                 const Vec3 e2{{x[seg.node[3]][0] - x[seg.node[1]][0], x[seg.node[3]][1] - x[seg.node[1]][1],
                                x[seg.node[3]][2] - x[seg.node[1]][2]}};
-                Vec3       normal{{e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
-                                   e1[0] * e2[1] - e1[1] * e2[0]}};
-                const double length = norm(normal);
-                for (auto &c : normal)
-                  c /= length > 0 ? length : 1.;
-                grid.for_each_in_box(lo, hi, [&](const unsigned int i) {
-                  if (std::count(seg.node.begin(), seg.node.end(), i))
-                    return;
-                  const double distance = plane_gap(x[i], centre, normal);
-                  if (length > 0 && (distance > skin_used_ || distance < -depth - skin_used_))
-                    return;
-                  const bool slave = forward ? member(i, in.bodies) : nodes_[i].body == in.target_body;
-                  if (slave && (!nodes_[i].particle || forward))
-                    cand.push_back({{i, g}});
-                });
+                b.normal = Vec3{{e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                                 e1[0] * e2[1] - e1[1] * e2[0]}};
+                b.length = norm(b.normal);
+                for (auto &c : b.normal)
+                  c /= b.length > 0 ? b.length : 1.;
+                boxes.push_back(b);
+                used.push_back(g);
               }
+            // Node i can reach segment k before the next build: inside its box grown by the
+            // depth and both reaches, and within the slab -depth - reach < (x - c) . n < reach.
+            const auto consider = [&](const unsigned int i, const unsigned int k) {
+              const Box         &b   = boxes[k];
+              const unsigned int g   = used[k];
+              const double       r   = reach_[i] + b.reach;
+              const auto        &seg = segments_[g];
+              if (std::count(seg.node.begin(), seg.node.end(), i))
+                return;
+              for (unsigned int c = 0; c < 3; ++c)
+                if (x[i][c] < b.lo[c] - b.depth - r || x[i][c] > b.hi[c] + b.depth + r)
+                  return;
+              const double distance = plane_gap(x[i], b.centre, b.normal);
+              if (b.length > 0 && (distance > r || distance < -b.depth - r))
+                return;
+              const bool slave = b.forward ? member(i, in.bodies) : nodes_[i].body == in.target_body;
+              if (slave && (!nodes_[i].particle || b.forward))
+                cand.push_back({{i, g}});
+            };
+            double widest = 0;
+            for (unsigned int k = 0; k < boxes.size(); ++k)
+              {
+                const Box   &b = boxes[k];
+                const double r = b.depth + b.reach + base;
+                widest         = std::max(widest, b.extent + b.depth + b.reach);
+                grid.for_each_in_box(Vec3{{b.lo[0] - r, b.lo[1] - r, b.lo[2] - r}},
+                                     Vec3{{b.hi[0] + r, b.hi[1] + r, b.hi[2] + r}}, [&](const unsigned int i) {
+                                       if (reach_[i] == base)
+                                         consider(i, k);
+                                     });
+              }
+            std::vector<Vec3> centres;
+            for (const auto &b : boxes)
+              centres.push_back(b.centre);
+            BinGrid segment_grid;
+            for (unsigned int i = 0; i < n; ++i)
+              if (reach_[i] > base && !boxes.empty())
+                {
+                  if (segment_grid.size() == 0)
+                    segment_grid.build(centres, 2. * widest);
+                  const double r = widest + reach_[i];
+                  segment_grid.for_each_in_box(Vec3{{x[i][0] - r, x[i][1] - r, x[i][2] - r}},
+                                               Vec3{{x[i][0] + r, x[i][1] + r, x[i][2] + r}},
+                                               [&](const unsigned int k) { consider(i, k); });
+                }
           }
       }
   }
@@ -502,13 +674,14 @@ namespace shard::contact
     const auto velocity = [&](const unsigned int i) {
       return Vec3{{state_[state_record * i + 3], state_[state_record * i + 4], state_[state_record * i + 5]}};
     };
-    // Rebuild rule: the rebuild interval, or a node moved more than skin/2 since the last build.
+    // Rebuild rule: the rebuild interval, or a node moved more than its reach since the last
+    // build.
     bool rebuild = !built_ || step >= last_build_ + rebuild_interval_;
     for (unsigned int i = 0; i < n && !rebuild; ++i)
       {
         const Vec3 x = position(i);
         const Vec3 dx{{x[0] - x_build_[i][0], x[1] - x_build_[i][1], x[2] - x_build_[i][2]}};
-        rebuild = norm(dx) > 0.5 * skin_used_;
+        rebuild = norm(dx) > reach_[i];
       }
     if (rebuild)
       {
@@ -519,7 +692,7 @@ namespace shard::contact
             if (offset_[s][p] >= 0)
               kept[s][(static_cast<unsigned long long>(candidates_[s][p][0]) << 32) | candidates_[s][p][1]] =
                 offset_[s][p];
-        build_candidates(step);
+        build_candidates(step, dt);
         for (unsigned int s = 0; s < interactions_.size(); ++s)
           {
             offset_[s].assign(candidates_[s].size(), -1.);
@@ -532,21 +705,14 @@ namespace shard::contact
               }
           }
       }
-    // Bonds broke since the flags were set: refresh them (the candidates stay).
-    if (rebuild || particles_->broken_bonds().size() != n_broken_seen_ ||
-        particles_->free_particles().size() != n_free_seen_)
+    // Bonds broke since the build: their pairs join the candidates.
+    if (rebuild)
       {
-        n_broken_seen_ = particles_->broken_bonds().size();
-        n_free_seen_   = particles_->free_particles().size();
-        for (unsigned int s = 0; s < interactions_.size(); ++s)
-          if (interactions_[s].type == Type::particles)
-            {
-              auto &flags = bonded_[s];
-              flags.resize(candidates_[s].size());
-              for (std::size_t p = 0; p < candidates_[s].size(); ++p)
-                flags[p] = bonded(candidates_[s][p][0], candidates_[s][p][1]);
-            }
+        seen_broken_ = particles_->broken_bonds();
+        seen_free_   = particles_->free_particles();
       }
+    else
+      wake_broken_pairs();
 
     force_old_.swap(force_);
     std::fill(force_.begin(), force_.end(), 0.);
@@ -584,8 +750,6 @@ namespace shard::contact
           {
             for (std::size_t p = 0; p < candidates_[s].size(); ++p)
               {
-                if (bonded_[s][p])
-                  continue;
                 const unsigned int i = candidates_[s][p][0], j = candidates_[s][p][1];
                 SphereHit          h = sphere_pair(position(i), position(j), nodes_[i].radius, nodes_[j].radius);
                 // Overlap a pair already had when it first met (neighbours whose bond just broke
@@ -619,13 +783,34 @@ namespace shard::contact
             // Per slave the hit it keeps (index into hits), slaves in the order first hit.
             std::vector<std::pair<SegmentHit, unsigned int>> hits;
             std::vector<unsigned int>                        slaves;
+            // Per segment (once per step): the mean plane through its centre, the half width
+            // of the slab that holds its four nodes, and whether its four triangles face the
+            // same way. A point above that slab, or below it by more than the depth, cannot hit
+            // any of the triangles, so point_segment is skipped for it.
+            plane_stamp_.resize(segments_.size(), ~0u);
+            planes_.resize(segments_.size());
             for (const auto &[i, g] : candidates_[s])
               {
                 const auto &seg = segments_[g];
                 std::array<Vec3, 4> xs;
                 for (unsigned int v = 0; v < 4; ++v)
                   xs[v] = position(seg.node[v]);
-                const SegmentHit h = point_segment(position(i), xs, nodes_[seg.node[0]].spacing);
+                const double depth = nodes_[seg.node[0]].spacing;
+                Plane       &pl    = planes_[g];
+                if (plane_stamp_[g] != step)
+                  {
+                    plane_stamp_[g] = step;
+                    pl              = mean_plane(xs);
+                  }
+                if (pl.usable)
+                  {
+                    const Vec3   p = position(i);
+                    const double h = (p[0] - pl.centre[0]) * pl.normal[0] + (p[1] - pl.centre[1]) * pl.normal[1] +
+                                     (p[2] - pl.centre[2]) * pl.normal[2];
+                    if (h > pl.half_width || h < -pl.half_width - depth)
+                      continue;
+                  }
+                const SegmentHit h = point_segment(position(i), xs, depth);
                 if (!h.hit)
                   continue;
                 if (best_[i] < 0)

@@ -250,8 +250,8 @@ namespace shard::particles
         while (true)
           {
             std::vector<unsigned long long> freed;
-            for (unsigned int i = 0; i < n; ++i)
-              if (particles.intact_bonds(i) < minimum_bonds_ &&
+            for (const unsigned int i : particles.take_changed_rows())
+              if (i < n && particles.intact_bonds(i) < minimum_bonds_ &&
                   !std::binary_search(particles.free_particles().begin(), particles.free_particles().end(),
                                       particles.compact_id(i)))
                 freed.push_back(particles.compact_id(i));

@@ -5,6 +5,7 @@
 #include <deal.II/base/mpi.h>
 
 #include <algorithm>
+#include <numeric>
 #include <cstdint>
 #include <iterator>
 #include <map>
@@ -312,6 +313,10 @@ namespace shard::particles
     // (conversion during the run) stay broken.
     compact_id_.resize(stencils_.n_k);
     compact_of_.clear();
+    a_by_column_ = ColumnIndex();
+    g_by_column_ = ColumnIndex();
+    changed_rows_.resize(stencils_.n_i);
+    std::iota(changed_rows_.begin(), changed_rows_.end(), 0u);
     compact_position_.resize(stencils_.n_k);
     compact_radius_.resize(stencils_.n_k);
     for (unsigned int k = 0; k < stencils_.n_k; ++k)
@@ -394,30 +399,6 @@ namespace shard::particles
   ParticleSet::mark_broken(const std::vector<Bond> &bonds, const std::vector<unsigned long long> &free_ids,
                            std::vector<unsigned int> &a_rows, std::vector<unsigned int> &g_rows)
   {
-    if (!free_ids.empty())
-      {
-        const auto is_free = [&](const unsigned int k) {
-          return std::binary_search(free_ids.begin(), free_ids.end(), compact_id_[k]);
-        };
-        for (const bool is_g : {false, true})
-          {
-            const Stencil &s      = is_g ? stencils_.g : stencils_.a;
-            auto          &intact = is_g ? g_intact_ : a_intact_;
-            auto          &rows   = is_g ? g_rows : a_rows;
-            for (unsigned int r = 0; r < s.n_rows(); ++r)
-              {
-                if (!is_g && a_identity_[r])
-                  continue;
-                const bool row_free = is_free(r);
-                for (unsigned int e = s.row_offsets[r]; e < s.row_offsets[r + 1]; ++e)
-                  if (s.columns[e] != r && (row_free || is_free(s.columns[e])))
-                    {
-                      intact[e] = 0;
-                      rows.push_back(r);
-                    }
-              }
-          }
-      }
     constexpr unsigned int none = ~0u;
     if (compact_of_.size() != compact_id_.size())
       {
@@ -430,6 +411,38 @@ namespace shard::particles
       const auto it = compact_of_.find(id);
       return it == compact_of_.end() ? none : it->second;
     };
+    if (!free_ids.empty())
+      {
+        // A free particle loses the entries of its own row and those in its column.
+        for (const bool is_g : {false, true})
+          {
+            const Stencil &s      = is_g ? stencils_.g : stencils_.a;
+            auto          &intact = is_g ? g_intact_ : a_intact_;
+            auto          &rows   = is_g ? g_rows : a_rows;
+            ColumnIndex   &index  = is_g ? g_by_column_ : a_by_column_;
+            if (index.offsets.empty())
+              index.build(s);
+            const auto clear_entry = [&](const unsigned int r, const unsigned int e) {
+              if (s.columns[e] != r && (is_g || !a_identity_[r]))
+                {
+                  intact[e] = 0;
+                  rows.push_back(r);
+                }
+            };
+            for (const unsigned long long id : free_ids)
+              {
+                const unsigned int k = find(id);
+                if (k == none)
+                  continue;
+                if (k < s.n_rows())
+                  for (unsigned int e = s.row_offsets[k]; e < s.row_offsets[k + 1]; ++e)
+                    clear_entry(k, e);
+                if (k + 1 < index.offsets.size())
+                  for (unsigned int t = index.offsets[k]; t < index.offsets[k + 1]; ++t)
+                    clear_entry(index.rows[t], index.entries[t]);
+              }
+          }
+      }
     // Clears the entry of column @p column in row @p row of @p s, if there is one.
     const auto clear = [](const Stencil &s, std::vector<unsigned char> &intact, const unsigned int row,
                           const unsigned int column, std::vector<unsigned int> &rows) {
@@ -524,6 +537,7 @@ namespace shard::particles
     std::vector<unsigned int> a_rows, g_rows;
     mark_broken(new_bonds, new_free, a_rows, g_rows);
     rebuild_rows(a_rows, g_rows);
+    changed_rows_.insert(changed_rows_.end(), g_rows.begin(), g_rows.end());
     return a_rows.size() + g_rows.size();
   }
 
@@ -535,6 +549,36 @@ namespace shard::particles
     std::vector<unsigned int> a_rows, g_rows;
     mark_broken(broken_, free_, a_rows, g_rows);
     rebuild_rows(a_rows, g_rows);
+  }
+
+  std::vector<unsigned int>
+  ParticleSet::take_changed_rows()
+  {
+    std::vector<unsigned int> rows;
+    rows.swap(changed_rows_);
+    std::sort(rows.begin(), rows.end());
+    rows.erase(std::unique(rows.begin(), rows.end()), rows.end());
+    return rows;
+  }
+
+  void
+  ParticleSet::ColumnIndex::build(const Stencil &s)
+  {
+    offsets.assign(s.n_columns + 1, 0);
+    for (std::size_t e = 0; e < s.n_entries(); ++e)
+      ++offsets[s.columns[e] + 1];
+    for (unsigned int c = 0; c < s.n_columns; ++c)
+      offsets[c + 1] += offsets[c];
+    rows.resize(s.n_entries());
+    entries.resize(s.n_entries());
+    std::vector<unsigned int> next(offsets.begin(), offsets.end() - 1);
+    for (unsigned int r = 0; r < s.n_rows(); ++r)
+      for (unsigned int e = s.row_offsets[r]; e < s.row_offsets[r + 1]; ++e)
+        {
+          const unsigned int t = next[s.columns[e]]++;
+          rows[t]              = r;
+          entries[t]           = e;
+        }
   }
 
   unsigned int

@@ -186,14 +186,31 @@ namespace shard::contact
     std::vector<double>       state_;             // x (3) and v (3) per node
     std::vector<double>       force_, force_old_, x_old_;
     std::vector<Vec3>         x_build_;
-    /// Sizes of the broken-bond and free-particle lists when the bonded flags were set.
-    std::size_t n_broken_seen_ = 0, n_free_seen_ = 0;
+    /// Per node, how far it may move before the candidates are rebuilt (m): skin/2, or more
+    /// for a node fast enough to cover that in fewer than reach_steps steps.
+    std::vector<double>       reach_;
+    static constexpr double   reach_steps = 16;
+    /// The broken-bond and free-particle lists (sorted) when the dormant pairs were last
+    /// updated: what is new since is found by a set difference.
+    std::vector<std::pair<unsigned long long, unsigned long long>> seen_broken_;
+    std::vector<unsigned long long>                                  seen_free_;
+    /// Particle id (global DOF / 3) to contact node index, for the particle nodes.
+    std::unordered_map<unsigned long long, unsigned int> node_of_particle_;
     const particles::ParticleSet *particles_ = nullptr;
     dealii::types::global_dof_index n_dofs_ = 0;
     /// Candidates per interaction: (node, segment), (node, node) or (node).
     std::vector<std::vector<std::array<unsigned int, 2>>> candidates_;
-    /// Per particle-contact candidate: 1 while the pair is bonded (no contact).
-    std::vector<std::vector<unsigned char>> bonded_;
+    /// Per particles interaction: the pairs within reach at the last build that were bonded
+    /// (no contact). A pair moves to the candidates when its bond breaks or one of its
+    /// particles becomes free, so the step loop visits unbonded pairs only.
+    struct Dormant
+    {
+      std::vector<std::array<unsigned int, 2>>             pairs;
+      std::vector<unsigned char>                           woken;
+      std::vector<unsigned int>                            offsets; // per node, into of_node
+      std::vector<unsigned int>                            of_node; // pair indices
+    };
+    std::vector<Dormant> dormant_;
     /// Per particle-contact candidate: the overlap the pair had when it first met (ignored,
     /// the smallest since; -1 before the first evaluation).
     std::vector<std::vector<double>> offset_;
@@ -211,9 +228,25 @@ namespace shard::contact
     double skin_used_ = 0;
 
     void
-    build_candidates(unsigned int step);
+    build_candidates(unsigned int step, double dt);
+    /// The mean plane of a segment: a point with (x - centre) . normal above half_width, or
+    /// below -half_width - depth, hits none of its triangles (usable: all four face normal).
+    struct Plane
+    {
+      Vec3   centre{}, normal{};
+      double half_width = 0;
+      bool   usable     = false;
+    };
+    std::vector<Plane>        planes_;
+    std::vector<unsigned int> plane_stamp_; // step at which planes_[g] was computed
+    static Plane
+    mean_plane(const std::array<Vec3, 4> &x);
     /// Whether particles @p a and @p b (node indices) are joined by an intact bond.
     bool
     bonded(unsigned int a, unsigned int b) const;
+    /// Moves the dormant pairs whose bond broke, or one of whose particles became free, since
+    /// the last call (or build) to the candidates.
+    void
+    wake_broken_pairs();
   };
 } // namespace shard::contact

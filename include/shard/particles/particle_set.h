@@ -262,6 +262,14 @@ namespace shard::particles
     unsigned int
     intact_bonds(unsigned int i) const;
 
+    /**
+     * @brief The owned rows whose bonds changed since the last call (sorted; after prepare()
+     * every owned row), and forgets them: only these can have lost bonds, so only these need a
+     * new count of intact bonds.
+     */
+    std::vector<unsigned int>
+    take_changed_rows();
+
   private:
     std::string              body_names_text_;
     std::vector<std::string> body_names_;
@@ -289,6 +297,17 @@ namespace shard::particles
     std::vector<unsigned char> a_identity_;
     /// Per entry of A and G: 1 while the bond is intact.
     std::vector<unsigned char> a_intact_, g_intact_;
+    /// Column index of a stencil: for column c, the rows and entries that reference it.
+    struct ColumnIndex
+    {
+      std::vector<unsigned int> offsets, rows, entries;
+      void
+      build(const Stencil &s);
+    };
+    /// Column indices of A and G (built at the first free particle after prepare()).
+    ColumnIndex a_by_column_, g_by_column_;
+    /// Owned rows whose bonds changed since take_changed_rows() was last called.
+    std::vector<unsigned int> changed_rows_;
     /// Broken bonds (global ids, sorted), kept across rebuilds.
     std::vector<Bond> broken_;
     /// Free particles (global ids, sorted), kept across rebuilds.
