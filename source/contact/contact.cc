@@ -41,8 +41,9 @@ namespace shard::contact
                           "contact.");
         prm.add_parameter("skin", skin_,
                           "Search margin: candidate pairs are found within contact distance + skin and rebuilt "
-                          "when a node has moved more than skin/2 since the last build. 0: the smallest contact "
-                          "spacing. Unit: m. Range: >= 0.",
+                          "when a node has moved more than skin/2 since the last build (a fast node gets the "
+                          "distance it covers in 16 steps instead). 0: the smallest contact spacing. Unit: m. "
+                          "Range: >= 0.",
                           Patterns::Double(0));
         prm.add_parameter("rebuild interval", rebuild_interval_,
                           "Steps after which the candidate pairs are rebuilt even if no node moved skin/2. Unit: "

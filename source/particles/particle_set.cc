@@ -315,6 +315,8 @@ namespace shard::particles
     compact_of_.clear();
     a_by_column_ = ColumnIndex();
     g_by_column_ = ColumnIndex();
+    rebuilt_a_rows_.clear();
+    rebuilt_g_rows_.clear();
     changed_rows_.resize(stencils_.n_i);
     std::iota(changed_rows_.begin(), changed_rows_.end(), 0u);
     compact_position_.resize(stencils_.n_k);
@@ -538,6 +540,8 @@ namespace shard::particles
     mark_broken(new_bonds, new_free, a_rows, g_rows);
     rebuild_rows(a_rows, g_rows);
     changed_rows_.insert(changed_rows_.end(), g_rows.begin(), g_rows.end());
+    rebuilt_a_rows_.insert(rebuilt_a_rows_.end(), a_rows.begin(), a_rows.end());
+    rebuilt_g_rows_.insert(rebuilt_g_rows_.end(), g_rows.begin(), g_rows.end());
     return a_rows.size() + g_rows.size();
   }
 
@@ -558,6 +562,20 @@ namespace shard::particles
     rows.swap(changed_rows_);
     std::sort(rows.begin(), rows.end());
     rows.erase(std::unique(rows.begin(), rows.end()), rows.end());
+    return rows;
+  }
+
+  std::pair<std::vector<unsigned int>, std::vector<unsigned int>>
+  ParticleSet::take_rebuilt_rows()
+  {
+    std::pair<std::vector<unsigned int>, std::vector<unsigned int>> rows;
+    rows.first.swap(rebuilt_a_rows_);
+    rows.second.swap(rebuilt_g_rows_);
+    for (auto *r : {&rows.first, &rows.second})
+      {
+        std::sort(r->begin(), r->end());
+        r->erase(std::unique(r->begin(), r->end()), r->end());
+      }
     return rows;
   }
 

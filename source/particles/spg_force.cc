@@ -117,6 +117,7 @@ namespace shard::particles
     particles_      = &particles;
     discretization_ = &discretization;
     active_         = particles.active();
+    evaluated_      = false;
     options_.smoothing     = smoothing_text_ == "none" ? Smoothing::none : Smoothing::two_level;
     options_.stabilization = stabilization_text_ == "filter" ? Stabilization::filter :
                              stabilization_text_ == "none"   ? Stabilization::none :
@@ -303,6 +304,7 @@ namespace shard::particles
   void
   SpgForce::set_state(const unsigned int i, const double *stress, const double *history, const double q)
   {
+    evaluated_ = false;
     std::copy(stress, stress + 6, &stress_[6 * i]);
     auto &g = groups_[group_of_[i]];
     std::copy(history, history + g.n_slots, g.state.data() + std::size_t(i - g.begin) * g.n_slots);
@@ -314,6 +316,7 @@ namespace shard::particles
   {
     if (!active_)
       return 0.;
+    evaluated_ = false;
     set_kinematics(d);
     if (options_.stabilization != Stabilization::residual)
       return 0.;
@@ -330,19 +333,34 @@ namespace shard::particles
   }
 
   double
-  SpgForce::refresh_forces(const mesh::Vector &d, mesh::Vector &delta)
+  SpgForce::refresh_forces(const mesh::Vector &d, mesh::Vector &delta, const std::vector<unsigned int> &a_rows,
+                           const std::vector<unsigned int> &g_rows)
   {
     if (!active_)
       return 0.;
     const std::vector<double> old = fk_;
+    const auto                update_vp = [&](const unsigned int i) {
+      double       Fi[9];
+      const double J = invert(&F_[9 * i], Fi);
+      volume_times_piola(&stress_[6 * i], q_[i], Fi, particles_->volume(i) * J, &VP_[9 * i]);
+    };
+    if (evaluated_)
+      {
+        // Only what the changed rows reach (the same numbers as the full evaluation below).
+        gather(d, dk_);
+        std::vector<unsigned int> changed;
+        const double              w =
+          op_.refresh_internal_force(dk_.data(), u_.data(), F_.data(), VP_.data(), update_vp, fk_.data(), a_rows, g_rows,
+                                     changed);
+        for (const unsigned int k : changed)
+          for (unsigned int c = 0; c < 3; ++c)
+            delta.local_element(particles_->local_dof(k) + c) += fk_[3 * k + c] - old[3 * k + c];
+        return w;
+      }
     set_kinematics(d);
     // V P = V J (sigma - q I) F^-T from the stored stress and bulk viscosity.
     for (unsigned int i = 0; i < n_owned(); ++i)
-      {
-        double       Fi[9];
-        const double J   = invert(&F_[9 * i], Fi);
-        volume_times_piola(&stress_[6 * i], q_[i], Fi, particles_->volume(i) * J, &VP_[9 * i]);
-      }
+      update_vp(i);
     std::fill(fk_.begin(), fk_.end(), 0.);
     op_.subtract_internal_force(VP_.data(), fk_.data());
     const double w =
@@ -350,6 +368,7 @@ namespace shard::particles
     for (unsigned int k = 0; k < particles_->stencils().n_k; ++k)
       for (unsigned int c = 0; c < 3; ++c)
         delta.local_element(particles_->local_dof(k) + c) += fk_[3 * k + c] - old[3 * k + c];
+    evaluated_ = options_.stabilization != Stabilization::filter;
     return w;
   }
 
@@ -567,6 +586,9 @@ namespace shard::particles
         f.local_element(j + 2) += fk_[3 * k + 2];
       }
     F_.swap(Fnew_);
+    // The refresh after broken bonds may reuse this evaluation (not with the filter, which
+    // changes d and reuses dk_ as scratch).
+    evaluated_ = options_.stabilization != Stabilization::filter;
     return result;
   }
 

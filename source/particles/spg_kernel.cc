@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/particles/spg_kernel.h>
 
+#include <algorithm>
 #include <stdexcept>
 
 namespace shard::particles
@@ -51,101 +52,199 @@ namespace shard::particles
     g_scratch_.assign(3 * a_.n_rows, 0.);
   }
 
+  // The per-row sums below serve both the full passes and the passes over listed rows, so a
+  // partial refresh gives exactly the values of a full evaluation.
+  inline void
+  SpgKernel::interpolate_row(const double *d, double *u, const unsigned int j) const
+  {
+    double s0 = 0, s1 = 0, s2 = 0;
+    for (unsigned int e = a_.offsets[j]; e < a_.offsets[j + 1]; ++e)
+      {
+        const double  w  = a_.values[e];
+        const double *dk = d + 3 * a_.columns[e];
+        s0 += w * dk[0];
+        s1 += w * dk[1];
+        s2 += w * dk[2];
+      }
+    u[3 * j]     = s0;
+    u[3 * j + 1] = s1;
+    u[3 * j + 2] = s2;
+  }
+
+  inline void
+  SpgKernel::deformation_gradient_row(const double *u, double *F, const unsigned int i) const
+  {
+    double f[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    for (unsigned int e = g_.offsets[i]; e < g_.offsets[i + 1]; ++e)
+      {
+        const double *gr = g_.values + 3 * e;
+        const double *uj = u + 3 * g_.columns[e];
+        for (unsigned int a = 0; a < 3; ++a)
+          for (unsigned int b = 0; b < 3; ++b)
+            f[3 * a + b] += uj[a] * gr[b];
+      }
+    for (unsigned int k = 0; k < 9; ++k)
+      F[9 * i + k] = f[k];
+  }
+
+  inline void
+  SpgKernel::gradient_transpose_row(const double *VP, double *g, const unsigned int j) const
+  {
+    double s[3] = {0, 0, 0};
+    for (unsigned int t = gt_offsets_[j]; t < gt_offsets_[j + 1]; ++t)
+      {
+        const double *p  = VP + 9 * gt_rows_[t];
+        const double *gr = g_.values + 3 * gt_entries_[t];
+        for (unsigned int a = 0; a < 3; ++a)
+          s[a] += p[3 * a] * gr[0] + p[3 * a + 1] * gr[1] + p[3 * a + 2] * gr[2];
+      }
+    g[3 * j]     = s[0];
+    g[3 * j + 1] = s[1];
+    g[3 * j + 2] = s[2];
+  }
+
+  inline void
+  SpgKernel::interpolate_transpose_row(const double *g, double *f, const unsigned int k, const unsigned int width) const
+  {
+    if (width == 3)
+      {
+        double s0 = 0, s1 = 0, s2 = 0;
+        for (unsigned int t = at_offsets_[k]; t < at_offsets_[k + 1]; ++t)
+          {
+            const double  w  = a_.values[at_entries_[t]];
+            const double *gj = g + 3 * at_rows_[t];
+            s0 += w * gj[0];
+            s1 += w * gj[1];
+            s2 += w * gj[2];
+          }
+        f[3 * k]     = s0;
+        f[3 * k + 1] = s1;
+        f[3 * k + 2] = s2;
+        return;
+      }
+    double s[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+    for (unsigned int t = at_offsets_[k]; t < at_offsets_[k + 1]; ++t)
+      {
+        const double  w  = a_.values[at_entries_[t]];
+        const double *gj = g + width * at_rows_[t];
+        for (unsigned int c = 0; c < width; ++c)
+          s[c] += w * gj[c];
+      }
+    for (unsigned int c = 0; c < width; ++c)
+      f[width * k + c] = s[c];
+  }
+
   void
   SpgKernel::interpolate(const double *d, double *u) const
   {
     for (unsigned int j = 0; j < a_.n_rows; ++j)
-      {
-        double s0 = 0, s1 = 0, s2 = 0;
-        for (unsigned int e = a_.offsets[j]; e < a_.offsets[j + 1]; ++e)
-          {
-            const double  w  = a_.values[e];
-            const double *dk = d + 3 * a_.columns[e];
-            s0 += w * dk[0];
-            s1 += w * dk[1];
-            s2 += w * dk[2];
-          }
-        u[3 * j]     = s0;
-        u[3 * j + 1] = s1;
-        u[3 * j + 2] = s2;
-      }
+      interpolate_row(d, u, j);
   }
 
   void
   SpgKernel::deformation_gradient(const double *u, double *F) const
   {
     for (unsigned int i = 0; i < g_.n_rows; ++i)
-      {
-        double f[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-        for (unsigned int e = g_.offsets[i]; e < g_.offsets[i + 1]; ++e)
-          {
-            const double *gr = g_.values + 3 * e;
-            const double *uj = u + 3 * g_.columns[e];
-            for (unsigned int a = 0; a < 3; ++a)
-              for (unsigned int b = 0; b < 3; ++b)
-                f[3 * a + b] += uj[a] * gr[b];
-          }
-        for (unsigned int k = 0; k < 9; ++k)
-          F[9 * i + k] = f[k];
-      }
+      deformation_gradient_row(u, F, i);
   }
 
   void
   SpgKernel::gradient_transpose(const double *VP, double *g) const
   {
     for (unsigned int j = 0; j < a_.n_rows; ++j)
-      {
-        double s[3] = {0, 0, 0};
-        for (unsigned int t = gt_offsets_[j]; t < gt_offsets_[j + 1]; ++t)
-          {
-            const double *p  = VP + 9 * gt_rows_[t];
-            const double *gr = g_.values + 3 * gt_entries_[t];
-            for (unsigned int a = 0; a < 3; ++a)
-              s[a] += p[3 * a] * gr[0] + p[3 * a + 1] * gr[1] + p[3 * a + 2] * gr[2];
-          }
-        g[3 * j]     = s[0];
-        g[3 * j + 1] = s[1];
-        g[3 * j + 2] = s[2];
-      }
+      gradient_transpose_row(VP, g, j);
   }
 
   void
   SpgKernel::interpolate_transpose(const double *g, double *f, const unsigned int width) const
   {
-    if (width == 3)
-      {
-        for (unsigned int k = 0; k < n_coefficients_; ++k)
-          {
-            double s0 = 0, s1 = 0, s2 = 0;
-            for (unsigned int t = at_offsets_[k]; t < at_offsets_[k + 1]; ++t)
-              {
-                const double  w  = a_.values[at_entries_[t]];
-                const double *gj = g + 3 * at_rows_[t];
-                s0 += w * gj[0];
-                s1 += w * gj[1];
-                s2 += w * gj[2];
-              }
-            f[3 * k]     = s0;
-            f[3 * k + 1] = s1;
-            f[3 * k + 2] = s2;
-          }
-        return;
-      }
     if (width == 0 || width > 9)
       throw std::invalid_argument("SpgKernel::interpolate_transpose: width must be 1 to 9");
     for (unsigned int k = 0; k < n_coefficients_; ++k)
-      {
-        double s[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
-        for (unsigned int t = at_offsets_[k]; t < at_offsets_[k + 1]; ++t)
+      interpolate_transpose_row(g, f, k, width);
+  }
+
+  void
+  SpgKernel::interpolate(const double *d, double *u, const std::vector<unsigned int> &rows) const
+  {
+    for (const unsigned int j : rows)
+      interpolate_row(d, u, j);
+  }
+
+  void
+  SpgKernel::deformation_gradient(const double *u, double *F, const std::vector<unsigned int> &rows) const
+  {
+    for (const unsigned int i : rows)
+      deformation_gradient_row(u, F, i);
+  }
+
+  void
+  SpgKernel::gradient_transpose(const double *VP, double *g, const std::vector<unsigned int> &rows) const
+  {
+    for (const unsigned int j : rows)
+      gradient_transpose_row(VP, g, j);
+  }
+
+  void
+  SpgKernel::interpolate_transpose(const double *g, double *f, const std::vector<unsigned int> &rows,
+                                   const unsigned int width) const
+  {
+    if (width == 0 || width > 9)
+      throw std::invalid_argument("SpgKernel::interpolate_transpose: width must be 1 to 9");
+    for (const unsigned int k : rows)
+      interpolate_transpose_row(g, f, k, width);
+  }
+
+  namespace
+  {
+    /// The marked indices in increasing order; clears the marks.
+    std::vector<unsigned int>
+    collect(std::vector<unsigned char> &mark)
+    {
+      std::vector<unsigned int> out;
+      for (unsigned int c = 0; c < mark.size(); ++c)
+        if (mark[c])
           {
-            const double  w  = a_.values[at_entries_[t]];
-            const double *gj = g + width * at_rows_[t];
-            for (unsigned int c = 0; c < width; ++c)
-              s[c] += w * gj[c];
+            out.push_back(c);
+            mark[c] = 0;
           }
-        for (unsigned int c = 0; c < width; ++c)
-          f[width * k + c] = s[c];
-      }
+      return out;
+    }
+
+    /// Columns of the rows @p rows of @p m, sorted without duplicates (marks, no sort).
+    std::vector<unsigned int>
+    columns_of(const CsrView &m, const std::vector<unsigned int> &rows, const unsigned int n_columns,
+               std::vector<unsigned char> &mark)
+    {
+      mark.assign(n_columns, 0);
+      for (const unsigned int r : rows)
+        for (unsigned int e = m.offsets[r]; e < m.offsets[r + 1]; ++e)
+          mark[m.columns[e]] = 1;
+      return collect(mark);
+    }
+  } // namespace
+
+  std::vector<unsigned int>
+  SpgKernel::interpolation_columns(const std::vector<unsigned int> &rows) const
+  {
+    return columns_of(a_, rows, n_coefficients_, mark_);
+  }
+
+  std::vector<unsigned int>
+  SpgKernel::gradient_columns(const std::vector<unsigned int> &rows) const
+  {
+    return columns_of(g_, rows, a_.n_rows, mark_);
+  }
+
+  std::vector<unsigned int>
+  SpgKernel::gradient_rows_using(const std::vector<unsigned int> &columns) const
+  {
+    mark_.assign(g_.n_rows, 0);
+    for (const unsigned int c : columns)
+      if (c + 1 < gt_offsets_.size())
+        for (unsigned int t = gt_offsets_[c]; t < gt_offsets_[c + 1]; ++t)
+          mark_[gt_rows_[t]] = 1;
+    return collect(mark_);
   }
 
   void

@@ -3,6 +3,7 @@
 #include <shard/particles/spg_operator.h>
 
 #include <algorithm>
+#include <iterator>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -207,19 +208,12 @@ namespace shard::particles
     const CsrView &a = smoothing_.interpolation();
     // w_I = Lambda_I (d_I - (A d)_I) on the owned rows, zero on the other rows J.
     double *w      = scratch_j_.data();
-    double  energy = 0;
+    residual_energy_.resize(n_i_);
     for (unsigned int i = 0; i < n_i_; ++i)
-      {
-        double s[3] = {d[3 * i], d[3 * i + 1], d[3 * i + 2]};
-        for (unsigned int e = a.offsets[i]; e < a.offsets[i + 1]; ++e)
-          for (unsigned int c = 0; c < 3; ++c)
-            s[c] -= a.values[e] * d[3 * a.columns[e] + c];
-        for (unsigned int c = 0; c < 3; ++c)
-          {
-            energy += 0.5 * options_.residual_coefficient * lambda_[i] * s[c] * s[c];
-            w[3 * i + c] = lambda_[i] * s[c];
-          }
-      }
+      residual_row(a, d, i);
+    double energy = 0;
+    for (unsigned int i = 0; i < n_i_; ++i)
+      energy += residual_energy_[i];
     std::fill(w + 3 * n_i_, w + 3 * n_j_, 0.);
     // f -= alpha (I - A)^T w.
     smoothing_.interpolate_transpose(w, scratch_k_.data(), 3);
@@ -228,6 +222,95 @@ namespace shard::particles
       f[k] -= alpha * w[k];
     for (unsigned int k = 0; k < 3 * n_k_; ++k)
       f[k] += alpha * scratch_k_[k];
+    return energy;
+  }
+
+  void
+  SpgOperator::residual_row(const CsrView &a, const double *d, const unsigned int i) const
+  {
+    double s[3] = {d[3 * i], d[3 * i + 1], d[3 * i + 2]};
+    for (unsigned int e = a.offsets[i]; e < a.offsets[i + 1]; ++e)
+      for (unsigned int c = 0; c < 3; ++c)
+        s[c] -= a.values[e] * d[3 * a.columns[e] + c];
+    double energy = 0;
+    for (unsigned int c = 0; c < 3; ++c)
+      {
+        energy += 0.5 * options_.residual_coefficient * lambda_[i] * s[c] * s[c];
+        scratch_j_[3 * i + c] = lambda_[i] * s[c];
+      }
+    residual_energy_[i] = energy;
+  }
+
+  double
+  SpgOperator::refresh_internal_force(const double *d, double *u, double *F, double *VP,
+                                      const std::function<void(unsigned int)> &update_vp, double *f,
+                                      const std::vector<unsigned int> &a_rows, const std::vector<unsigned int> &g_rows,
+                                      std::vector<unsigned int> &changed) const
+  {
+    // Union of two sorted index lists.
+    const auto merged = [](const std::vector<unsigned int> &x, const std::vector<unsigned int> &y) {
+      std::vector<unsigned int> out;
+      out.reserve(x.size() + y.size());
+      std::set_union(x.begin(), x.end(), y.begin(), y.end(), std::back_inserter(out));
+      return out;
+    };
+    // The u rows of A that changed (for DNI kernel_'s A is the identity: u does not change), then
+    // the points whose F changes: new G rows, or G rows that read a changed u.
+    kernel_.interpolate(d, u, a_rows);
+    const auto points = merged(g_rows, kernel_.gradient_rows_using(a_rows));
+    kernel_.deformation_gradient(u, F, points);
+    for (const unsigned int i : points)
+      update_vp(i);
+    // g_J = sum_I G_IJ^T (V P)_I of every J those points reach.
+    auto      &g       = kernel_.last_gradient_transpose();
+    const auto reached = kernel_.gradient_columns(points);
+    kernel_.gradient_transpose(VP, g.data(), reached);
+    // The coefficients whose force changes: columns of the A rows with a new g or new values,
+    // of the A rows of the points (correction xi), and of the changed residual rows.
+    std::vector<unsigned int> owned_a;
+    for (const unsigned int r : a_rows)
+      if (r < n_i_)
+        owned_a.push_back(r);
+    changed = kernel_.interpolation_columns(merged(reached, a_rows));
+    if (!xi_.empty())
+      changed = merged(changed, kernel_.interpolation_columns(merged(points, owned_a)));
+    const bool residual = options_.stabilization == Stabilization::residual;
+    if (residual)
+      changed = merged(merged(changed, smoothing_.interpolation_columns(owned_a)), owned_a);
+    // Their forces, with the sums of subtract_internal_force and subtract_residual_force.
+    kernel_.interpolate_transpose(g.data(), scratch_k_.data(), changed, 3);
+    for (const unsigned int k : changed)
+      for (unsigned int c = 0; c < 3; ++c)
+        f[3 * k + c] = 0. - scratch_k_[3 * k + c];
+    if (!xi_.empty())
+      {
+        std::copy(VP, VP + 9 * n_i_, scratch_j9_.begin());
+        kernel_.interpolate_transpose(scratch_j9_.data(), scratch_k9_.data(), changed, 9);
+        for (const unsigned int k : changed)
+          {
+            const double *q = &scratch_k9_[9 * k];
+            const double *x = &xi_[3 * k];
+            for (unsigned int i = 0; i < 3; ++i)
+              f[3 * k + i] -= q[3 * i] * x[0] + q[3 * i + 1] * x[1] + q[3 * i + 2] * x[2];
+          }
+      }
+    if (!residual)
+      return 0.;
+    const CsrView &a = smoothing_.interpolation();
+    for (const unsigned int i : owned_a)
+      residual_row(a, d, i);
+    smoothing_.interpolate_transpose(scratch_j_.data(), scratch_k_.data(), changed, 3);
+    const double alpha = options_.residual_coefficient;
+    for (const unsigned int k : changed)
+      for (unsigned int c = 0; c < 3; ++c)
+        {
+          if (k < n_i_)
+            f[3 * k + c] -= alpha * scratch_j_[3 * k + c];
+          f[3 * k + c] += alpha * scratch_k_[3 * k + c];
+        }
+    double energy = 0;
+    for (unsigned int i = 0; i < n_i_; ++i)
+      energy += residual_energy_[i];
     return energy;
   }
 

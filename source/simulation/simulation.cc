@@ -311,7 +311,8 @@ namespace shard
                     // The kick uses the forces of the new stencils (f_ext_ serves as work space
                     // for the change, then holds the loads again).
                     f_ext_ = 0;
-                    const double w = spg_.refresh_forces(d_, f_ext_);
+                    const auto [a_rows, g_rows] = particles_.take_rebuilt_rows();
+                    const double w              = spg_.refresh_forces(d_, f_ext_, a_rows, g_rows);
                     f_ext_.compress(VectorOperation::add);
                     f_ += f_ext_;
                     // The kick's kinetic energy (product form) sees the force change at once:

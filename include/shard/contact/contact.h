@@ -88,10 +88,11 @@ namespace shard::contact
 
     /**
      * @brief Adds the penalty and friction forces of every contact pair to the owned entries of
-     * @p f; rebuilds the candidate lists when the largest displacement since the last build
-     * exceeds half the skin or the rebuild interval has passed, or bonds broke. Accumulates
-     * the contact work and, with the step @p dt, the friction dissipation. Not collective
-     * (every rank has every position).
+     * @p f; rebuilds the candidate lists when a node has moved more than its reach since the
+     * last build (skin/2, more for fast nodes; doc/manual/contact.md) or the rebuild interval
+     * has passed. Pairs whose bond broke since join the candidates. Accumulates the contact
+     * work and, with the step @p dt, the friction dissipation. Not collective (every rank has
+     * every position).
      */
     ContactResult
     add_forces(unsigned int step, double dt, mesh::Vector &f);

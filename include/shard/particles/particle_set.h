@@ -270,6 +270,11 @@ namespace shard::particles
     std::vector<unsigned int>
     take_changed_rows();
 
+    /// The local rows of A (first) and of G (second) rebuilt by break_bonds() since the last
+    /// call (sorted), and forgets them; for SpgForce::refresh_forces().
+    std::pair<std::vector<unsigned int>, std::vector<unsigned int>>
+    take_rebuilt_rows();
+
   private:
     std::string              body_names_text_;
     std::vector<std::string> body_names_;
@@ -308,6 +313,8 @@ namespace shard::particles
     ColumnIndex a_by_column_, g_by_column_;
     /// Owned rows whose bonds changed since take_changed_rows() was last called.
     std::vector<unsigned int> changed_rows_;
+    /// Rows of A and G rebuilt since take_rebuilt_rows() was last called.
+    std::vector<unsigned int> rebuilt_a_rows_, rebuilt_g_rows_;
     /// Broken bonds (global ids, sorted), kept across rebuilds.
     std::vector<Bond> broken_;
     /// Free particles (global ids, sorted), kept across rebuilds.

@@ -97,10 +97,16 @@ namespace shard::particles
      * adds to @p delta (owned and ghost entries; compress(add) afterwards) the change of this
      * step's particle force, new minus old, with the stored stress. So the kick that follows
      * uses forces of the new stencils, and the work of the next step matches them.
+     *
+     * Right after add_internal_forces() (same @p d, stress and stencil pattern) only the rows
+     * @p a_rows of A and @p g_rows of G that changed, and what they reach, are recomputed
+     * (SpgOperator::refresh_internal_force(), the same numbers); otherwise everything is.
+     * @param a_rows, g_rows the local rows rebuilt since the force (ParticleSet::take_rebuilt_rows())
      * @return the residual-stabilization energy W_s for @p d with the new stencils (J)
      */
     double
-    refresh_forces(const mesh::Vector &d, mesh::Vector &delta);
+    refresh_forces(const mesh::Vector &d, mesh::Vector &delta, const std::vector<unsigned int> &a_rows,
+                   const std::vector<unsigned int> &g_rows);
     /// det F of owned particle @p i at the last force evaluation or reset_deformation() (1).
     double
     jacobian(unsigned int i) const;
@@ -242,6 +248,9 @@ namespace shard::particles
     std::string        correction_text_    = "consistent";
     FormulationOptions options_;
     bool               declared_ = false, active_ = false;
+    /// Whether u, F, VP, the force and the operator's g and residual weights are those of the
+    /// last add_internal_forces() at the present d (a partial refresh may start from them).
+    bool evaluated_ = false;
 
     const ParticleSet           *particles_ = nullptr;
     const mesh::Discretization  *discretization_ = nullptr;

@@ -81,6 +81,38 @@ namespace shard::particles
     void
     interpolate_transpose(const double *g, double *f, unsigned int width = 3) const;
 
+    /// @name The passes over listed rows only (u rows J, F rows I, g rows J, f rows K), with
+    /// exactly the sums of the full passes; for a refresh after rows of A or G changed in place.
+    /// @{
+    void
+    interpolate(const double *d, double *u, const std::vector<unsigned int> &rows) const;
+    void
+    deformation_gradient(const double *u, double *F, const std::vector<unsigned int> &rows) const;
+    void
+    gradient_transpose(const double *VP, double *g, const std::vector<unsigned int> &rows) const;
+    void
+    interpolate_transpose(const double *g, double *f, const std::vector<unsigned int> &rows, unsigned int width) const;
+    /// @}
+
+    /// Columns K of the rows @p rows of A (sorted, no duplicates).
+    std::vector<unsigned int>
+    interpolation_columns(const std::vector<unsigned int> &rows) const;
+
+    /// Columns J of the rows @p rows of G (sorted, no duplicates).
+    std::vector<unsigned int>
+    gradient_columns(const std::vector<unsigned int> &rows) const;
+
+    /// Rows I of G that hold one of the columns @p columns (sorted, no duplicates).
+    std::vector<unsigned int>
+    gradient_rows_using(const std::vector<unsigned int> &columns) const;
+
+    /// g_J of the last internal_force() (3 per row J); a refresh updates it in place.
+    std::vector<double> &
+    last_gradient_transpose() const
+    {
+      return g_scratch_;
+    }
+
     /// Number of coefficients K (columns of A).
     unsigned int
     n_coefficients() const
@@ -117,6 +149,15 @@ namespace shard::particles
     }
 
   private:
+    void
+    interpolate_row(const double *d, double *u, unsigned int j) const;
+    void
+    deformation_gradient_row(const double *u, double *F, unsigned int i) const;
+    void
+    gradient_transpose_row(const double *VP, double *g, unsigned int j) const;
+    void
+    interpolate_transpose_row(const double *g, double *f, unsigned int k, unsigned int width) const;
+
     CsrView a_, g_;
     unsigned int n_coefficients_ = 0;
     // Transposed indices: for column c, the entries (row, entry index) that reference it.
@@ -124,5 +165,7 @@ namespace shard::particles
     std::vector<unsigned int> gt_offsets_, gt_rows_, gt_entries_;
     // Scratch of scatter 1.
     mutable std::vector<double> g_scratch_;
+    // Scratch marks of the index-set queries.
+    mutable std::vector<unsigned char> mark_;
   };
 } // namespace shard::particles

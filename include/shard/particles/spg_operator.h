@@ -184,6 +184,28 @@ namespace shard::particles
     integration_terms(const double *volume, const double *area_vector, double *c, double *b, double *w) const;
 
     /**
+     * @brief After the rows @p a_rows of A and @p g_rows of G changed in place (bonds broke),
+     * recomputes only what depends on them: u of the changed A rows, F of the points that read
+     * a changed row, their V P (through @p update_vp), the g of the particles those points
+     * reach, and the force of every coefficient whose sum changed. The result equals
+     * subtract_internal_force() plus subtract_residual_force() on the new rows to the last bit.
+     * Valid only right after those two ran (at the same @p d) on the old rows: it reuses their
+     * g and residual weights.
+     * @param d the coefficients of that evaluation (3 per K)
+     * @param u, F, VP the arrays of that evaluation, updated in place
+     * @param update_vp recomputes VP of point i from F of point i
+     * @param f the force of that evaluation (3 per K), updated in place
+     * @param a_rows, g_rows the changed rows (sorted)
+     * @param[out] changed the coefficients K whose force was recomputed (sorted)
+     * @return the residual stabilization energy (0 without it)
+     */
+    double
+    refresh_internal_force(const double *d, double *u, double *F, double *VP,
+                           const std::function<void(unsigned int)> &update_vp, double *f,
+                           const std::vector<unsigned int> &a_rows, const std::vector<unsigned int> &g_rows,
+                           std::vector<unsigned int> &changed) const;
+
+    /**
      * @brief Sets the gradient correction xi_K (3 per coefficient K), so that the test-function
      * gradients grad phi_K + xi_K Psi_K meet sum_I V_I grad phi_K(X_I) = sum_J a_J phi_K(X_J).
      */
@@ -242,6 +264,11 @@ namespace shard::particles
     SpgKernel                 smoothing_;  // RK A for the residual and the filter
     std::vector<double>       lambda_, xi_;
     mutable std::vector<double> scratch_j_, scratch_j9_, scratch_k_, scratch_k9_;
+    /// Residual energy of each owned row at the last evaluation.
+    mutable std::vector<double> residual_energy_;
+    /// Residual of owned row i: weight into scratch_j_, energy into residual_energy_.
+    void
+    residual_row(const CsrView &a, const double *d, unsigned int i) const;
   };
 
   /**

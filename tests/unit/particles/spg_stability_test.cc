@@ -528,3 +528,80 @@ TEST(SpgStability, GradientCorrectionMeetsIntegrationConstraint)
         EXPECT_LT(std::abs(t), 1e-12);
     }
 }
+
+// After rows of A and G change in place (bonds broke), the partial refresh recomputes only what
+// they reach and must give the force and residual energy of a full evaluation on the new rows,
+// to the last bit (both use the same per-row sums). Every form with a correction vector or the
+// residual is covered.
+TEST(SpgStability, PartialRefreshEqualsFullEvaluation)
+{
+  for (const auto &options : {make(Smoothing::two_level, Stabilization::residual, 0.1, pg),
+                              make(Smoothing::two_level, Stabilization::residual, 0.1, none),
+                              make(Smoothing::none, Stabilization::residual, 0.1, none),
+                              make(Smoothing::two_level, Stabilization::none, 0, pg)})
+    {
+      Block              b(8, 1.5, options, 0.2);
+      const unsigned int m = b.size();
+      std::mt19937       rng(5);
+      std::uniform_real_distribution<double> r(-1e-3, 1e-3);
+      std::vector<double> d(3 * m);
+      for (auto &v : d)
+        v = r(rng);
+      // A nonlinear stand-in for V P(F) that differs from point to point.
+      const auto vp_of = [&](const std::vector<double> &F, std::vector<double> &VP, const unsigned int i) {
+        for (unsigned int k = 0; k < 9; ++k)
+          VP[9 * i + k] = (1. + 0.1 * (i % 3)) * (F[9 * i + k] - (k % 4 == 0)) + F[9 * i + k] * F[9 * i + k];
+      };
+      std::vector<double> u(3 * b.stencils.n_j), F(9 * b.stencils.n_i), VP(9 * b.stencils.n_i);
+      const auto          full = [&](std::vector<double> &f) {
+        b.op.displacement(d.data(), u.data());
+        b.op.deformation_gradient(u.data(), F.data());
+        for (unsigned int i = 0; i < b.stencils.n_i; ++i)
+          vp_of(F, VP, i);
+        f.assign(3 * b.stencils.n_k, 0.);
+        b.op.subtract_internal_force(VP.data(), f.data());
+        return options.stabilization == Stabilization::residual ? b.op.subtract_residual_force(d.data(), f.data()) :
+                                                                  0.;
+      };
+      std::vector<double> f_old, f_full;
+      full(f_old);
+      // Rows change in place: one entry of each listed row drops, the others are rescaled.
+      const std::vector<unsigned int> a_rows{1, 9, 10, 73}, g_rows{0, 10, 65};
+      for (const unsigned int j : a_rows)
+        {
+          auto &a = b.stencils.a;
+          if (a.row_offsets[j + 1] - a.row_offsets[j] < 2)
+            continue;
+          a.psi[a.row_offsets[j] + 1] = 0;
+          for (unsigned int e = a.row_offsets[j]; e < a.row_offsets[j + 1]; ++e)
+            a.psi[e] *= 1.05;
+        }
+      for (const unsigned int i : g_rows)
+        {
+          auto &g = b.stencils.g;
+          for (unsigned int c = 0; c < 3; ++c)
+            g.grad[3 * (g.row_offsets[i] + 1) + c] = 0;
+          for (unsigned int e = 3 * g.row_offsets[i]; e < 3 * g.row_offsets[i + 1]; ++e)
+            g.grad[e] *= 0.95;
+        }
+      // Partial refresh from the old evaluation's arrays, then the full one on the new rows.
+      std::vector<double>       f_part = f_old, u_part = u, F_part = F, VP_part = VP;
+      std::vector<unsigned int> changed;
+      const double              e_part = b.op.refresh_internal_force(
+        d.data(), u_part.data(), F_part.data(), VP_part.data(), [&](const unsigned int i) { vp_of(F_part, VP_part, i); },
+        f_part.data(), a_rows, g_rows, changed);
+      const double e_full = full(f_full);
+      EXPECT_FALSE(changed.empty());
+      EXPECT_LT(changed.size(), b.stencils.n_k) << "the refresh should not touch every coefficient";
+      double largest_change = 0;
+      for (unsigned int k = 0; k < f_full.size(); ++k)
+        {
+          largest_change = std::max(largest_change, std::abs(f_full[k] - f_old[k]));
+          ASSERT_EQ(f_part[k], f_full[k]) << "coefficient entry " << k;
+        }
+      EXPECT_GT(largest_change, 0.) << "the row changes must change the force";
+      EXPECT_EQ(e_part, e_full);
+      for (unsigned int k = 0; k < F.size(); ++k)
+        ASSERT_EQ(F_part[k], F[k]);
+    }
+}
