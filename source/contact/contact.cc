@@ -376,21 +376,27 @@ namespace shard::contact
                    displs_.data(), MPI_DOUBLE, comm_);
   }
 
+  double
+  Contact::segment_frame(const std::array<Vec3, 4> &x, Vec3 &centre, Vec3 &normal)
+  {
+    for (unsigned int c = 0; c < 3; ++c)
+      centre[c] = 0.25 * (x[0][c] + x[1][c] + x[2][c] + x[3][c]);
+    const Vec3 d1{{x[2][0] - x[0][0], x[2][1] - x[0][1], x[2][2] - x[0][2]}};
+    const Vec3 d2{{x[3][0] - x[1][0], x[3][1] - x[1][1], x[3][2] - x[1][2]}};
+    normal = Vec3{{d1[1] * d2[2] - d1[2] * d2[1], d1[2] * d2[0] - d1[0] * d2[2], d1[0] * d2[1] - d1[1] * d2[0]}};
+    const double length = norm(normal);
+    for (auto &c : normal)
+      c /= length > 0 ? length : 1.;
+    return length;
+  }
+
   Contact::Plane
   Contact::mean_plane(const std::array<Vec3, 4> &x)
   {
     Plane p;
-    for (unsigned int c = 0; c < 3; ++c)
-      p.centre[c] = 0.25 * (x[0][c] + x[1][c] + x[2][c] + x[3][c]);
-    const Vec3 d1{{x[2][0] - x[0][0], x[2][1] - x[0][1], x[2][2] - x[0][2]}};
-    const Vec3 d2{{x[3][0] - x[1][0], x[3][1] - x[1][1], x[3][2] - x[1][2]}};
-    p.normal = Vec3{{d1[1] * d2[2] - d1[2] * d2[1], d1[2] * d2[0] - d1[0] * d2[2], d1[0] * d2[1] - d1[1] * d2[0]}};
-    const double length = norm(p.normal);
-    if (!(length > 0))
+    if (!(segment_frame(x, p.centre, p.normal) > 0))
       return p;
     double extent = 0;
-    for (auto &c : p.normal)
-      c /= length;
     for (unsigned int a = 0; a < 4; ++a)
       {
         const Vec3 &xa = x[a], &xb = x[(a + 1) % 4];
@@ -588,28 +594,19 @@ namespace shard::contact
                 if (!b.forward && !backward)
                   continue;
                 b.lo = b.hi = x[seg.node[0]];
-                b.centre    = Vec3{{0, 0, 0}};
-                for (const unsigned int v : seg.node)
+                std::array<Vec3, 4> xs;
+                for (unsigned int v = 0; v < 4; ++v)
                   {
-                    b.reach = std::max(b.reach, reach_[v]);
+                    const unsigned int a = seg.node[v];
+                    xs[v]                = x[a];
+                    b.reach              = std::max(b.reach, reach_[a]);
                     for (unsigned int c = 0; c < 3; ++c)
-                      {
-                        b.lo[c] = std::min(b.lo[c], x[v][c]), b.hi[c] = std::max(b.hi[c], x[v][c]);
-                        b.centre[c] += 0.25 * x[v][c];
-                      }
+                      b.lo[c] = std::min(b.lo[c], x[a][c]), b.hi[c] = std::max(b.hi[c], x[a][c]);
                   }
+                b.length = segment_frame(xs, b.centre, b.normal);
                 for (unsigned int c = 0; c < 3; ++c)
                   b.extent = std::max({b.extent, b.hi[c] - b.centre[c], b.centre[c] - b.lo[c]});
                 b.depth = nodes_[seg.node[0]].spacing;
-                const Vec3 e1{{x[seg.node[2]][0] - x[seg.node[0]][0], x[seg.node[2]][1] - x[seg.node[0]][1],
-                               x[seg.node[2]][2] - x[seg.node[0]][2]}};
-                const Vec3 e2{{x[seg.node[3]][0] - x[seg.node[1]][0], x[seg.node[3]][1] - x[seg.node[1]][1],
-                               x[seg.node[3]][2] - x[seg.node[1]][2]}};
-                b.normal = Vec3{{e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
-                                 e1[0] * e2[1] - e1[1] * e2[0]}};
-                b.length = norm(b.normal);
-                for (auto &c : b.normal)
-                  c /= b.length > 0 ? b.length : 1.;
                 boxes.push_back(b);
                 used.push_back(g);
               }
@@ -723,6 +720,14 @@ namespace shard::contact
       for (unsigned int c = 0; c < 3; ++c)
         force_[3 * i + c] += w * g[c];
     };
+    // Coulomb friction for the relative velocity vr of a pair pressed by fn along normal: added
+    // to force, its power booked as dissipation.
+    const auto add_friction = [&](const Vec3 &vr, const Vec3 &normal, const double fn, const double mu, Vec3 &force) {
+      const Vec3 ft = coulomb_friction(vr, normal, fn, mu, friction_velocity_);
+      friction_power -= ft[0] * vr[0] + ft[1] * vr[1] + ft[2] * vr[2];
+      for (unsigned int c = 0; c < 3; ++c)
+        force[c] += ft[c];
+    };
     for (unsigned int s = 0; s < interactions_.size(); ++s)
       {
         const auto &in = interactions_[s];
@@ -736,13 +741,7 @@ namespace shard::contact
                 const double fn = in.penalty * nodes_[i].bulk * nodes_[i].spacing * (-gap);
                 Vec3         fvec{{fn * in.normal[0], fn * in.normal[1], fn * in.normal[2]}};
                 if (in.friction > 0)
-                  {
-                    const Vec3 ft = coulomb_friction(velocity(i), in.normal, fn, in.friction, friction_velocity_);
-                    const Vec3 vi = velocity(i);
-                    friction_power -= ft[0] * vi[0] + ft[1] * vi[1] + ft[2] * vi[2];
-                    for (unsigned int c = 0; c < 3; ++c)
-                      fvec[c] += ft[c];
-                  }
+                  add_friction(velocity(i), in.normal, fn, in.friction, fvec);
                 add(i, fvec, 1.);
                 wall_force_ += fn;
               }
@@ -768,11 +767,7 @@ namespace shard::contact
                 if (in.friction > 0)
                   {
                     const Vec3 vi = velocity(i), vj = velocity(j);
-                    const Vec3 vr{{vj[0] - vi[0], vj[1] - vi[1], vj[2] - vi[2]}};
-                    const Vec3 ft = coulomb_friction(vr, h.normal, fn, in.friction, friction_velocity_);
-                    friction_power -= ft[0] * vr[0] + ft[1] * vr[1] + ft[2] * vr[2];
-                    for (unsigned int c = 0; c < 3; ++c)
-                      fj[c] += ft[c];
+                    add_friction(Vec3{{vj[0] - vi[0], vj[1] - vi[1], vj[2] - vi[2]}}, h.normal, fn, in.friction, fj);
                   }
                 add(j, fj, 1.);
                 add(i, fj, -1.);
@@ -853,11 +848,7 @@ namespace shard::contact
                       for (unsigned int c = 0; c < 3; ++c)
                         vm[c] += h.weights[v] * state_[state_record * seg.node[v] + 3 + c];
                     const Vec3 vi = velocity(i);
-                    const Vec3 vr{{vi[0] - vm[0], vi[1] - vm[1], vi[2] - vm[2]}};
-                    const Vec3 ft = coulomb_friction(vr, h.normal, fn, in.friction, friction_velocity_);
-                    friction_power -= ft[0] * vr[0] + ft[1] * vr[1] + ft[2] * vr[2];
-                    for (unsigned int c = 0; c < 3; ++c)
-                      fi[c] += ft[c];
+                    add_friction(Vec3{{vi[0] - vm[0], vi[1] - vm[1], vi[2] - vm[2]}}, h.normal, fn, in.friction, fi);
                   }
                 add(i, fi, 1.);
                 for (unsigned int v = 0; v < 4; ++v)

@@ -242,6 +242,10 @@ namespace shard::contact
     std::vector<unsigned int> plane_stamp_; // step at which planes_[g] was computed
     static Plane
     mean_plane(const std::array<Vec3, 4> &x);
+    /// Centre of a segment and its unit normal from the diagonals; returns the length of the
+    /// diagonals' cross product (0 for a degenerate segment, whose normal is then not unit).
+    static double
+    segment_frame(const std::array<Vec3, 4> &x, Vec3 &centre, Vec3 &normal);
     /// Whether particles @p a and @p b (node indices) are joined by an intact bond.
     bool
     bonded(unsigned int a, unsigned int b) const;
