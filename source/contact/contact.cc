@@ -321,6 +321,10 @@ namespace shard::contact
     for (unsigned int i = 0; i < nodes_.size(); ++i)
       if (nodes_[i].particle)
         node_of_particle_.emplace(nodes_[i].dof / 3, i);
+    seen_broken_.clear();
+    seen_free_.clear();
+    free_node_.assign(nodes_.size(), 0);
+    broken_partners_.assign(nodes_.size(), {});
 
     // Skin and the critical step of the stiffest spring each node can meet.
     double smallest = 1e300;
@@ -420,14 +424,10 @@ namespace shard::contact
   Contact::bonded(const unsigned int a, const unsigned int b) const
   {
     const Node &p = nodes_[a], &q = nodes_[b];
-    if (!p.particle || !q.particle || p.body != q.body)
+    if (!p.particle || !q.particle || p.body != q.body || free_node_[a] || free_node_[b])
       return false;
-    const unsigned long long ia = p.dof / 3, ib = q.dof / 3;
-    const auto &free   = particles_->free_particles();
-    const auto &broken = particles_->broken_bonds();
-    if (std::binary_search(free.begin(), free.end(), ia) || std::binary_search(free.begin(), free.end(), ib))
-      return false;
-    if (std::binary_search(broken.begin(), broken.end(), std::make_pair(std::min(ia, ib), std::max(ia, ib))))
+    const auto &partners = broken_partners_[a];
+    if (std::find(partners.begin(), partners.end(), b) != partners.end())
       return false;
     // A bond: one particle inside the other's (box) support.
     const auto inside = [&](const unsigned int i, const Node &other) {
@@ -439,13 +439,16 @@ namespace shard::contact
     return inside(a, q) || inside(b, p);
   }
 
-  void
-  Contact::wake_broken_pairs()
+  Contact::BondNews
+  Contact::sync_bonds()
   {
+    BondNews news;
+    if (particles_ == nullptr)
+      return news;
     const auto &broken = particles_->broken_bonds();
     const auto &free   = particles_->free_particles();
     if (broken.size() == seen_broken_.size() && free.size() == seen_free_.size())
-      return;
+      return news;
     std::vector<std::pair<unsigned long long, unsigned long long>> new_bonds;
     std::vector<unsigned long long>                                  new_free;
     std::set_difference(broken.begin(), broken.end(), seen_broken_.begin(), seen_broken_.end(),
@@ -457,38 +460,53 @@ namespace shard::contact
       const auto it = node_of_particle_.find(id);
       return it == node_of_particle_.end() ? ~0u : it->second;
     };
+    for (const auto &[a, b] : new_bonds)
+      {
+        const unsigned int i = node(a), j = node(b);
+        if (i == ~0u || j == ~0u)
+          continue;
+        broken_partners_[i].push_back(j);
+        broken_partners_[j].push_back(i);
+        news.broken.push_back({{i, j}});
+      }
+    for (const unsigned long long id : new_free)
+      {
+        const unsigned int i = node(id);
+        if (i == ~0u)
+          continue;
+        free_node_[i] = 1;
+        news.freed.push_back(i);
+      }
+    return news;
+  }
+
+  void
+  Contact::wake_broken_pairs(const BondNews &news)
+  {
     for (unsigned int s = 0; s < interactions_.size(); ++s)
       {
         if (interactions_[s].type != Type::particles)
           continue;
-        Dormant   &dormant = dormant_[s];
-        const auto wake    = [&](const unsigned int p) {
+        Dormant &dormant = dormant_[s];
+        if (dormant.offsets.empty())
+          continue;
+        const auto wake = [&](const unsigned int p) {
           if (dormant.woken[p])
             return;
           dormant.woken[p] = 1;
           candidates_[s].push_back(dormant.pairs[p]);
           offset_[s].push_back(-1.);
         };
-        for (const auto &[a, b] : new_bonds)
-          {
-            const unsigned int i = node(a), j = node(b);
-            if (i == ~0u || j == ~0u || dormant.offsets.empty())
-              continue;
-            for (unsigned int t = dormant.offsets[i]; t < dormant.offsets[i + 1]; ++t)
-              {
-                const auto &pair = dormant.pairs[dormant.of_node[t]];
-                if (pair[0] == j || pair[1] == j)
-                  wake(dormant.of_node[t]);
-              }
-          }
-        for (const unsigned long long id : new_free)
-          {
-            const unsigned int i = node(id);
-            if (i == ~0u || dormant.offsets.empty())
-              continue;
-            for (unsigned int t = dormant.offsets[i]; t < dormant.offsets[i + 1]; ++t)
-              wake(dormant.of_node[t]);
-          }
+        for (const auto &[i, j] : news.broken)
+          for (unsigned int t = dormant.offsets[i]; t < dormant.offsets[i + 1]; ++t)
+            {
+              const auto &pair = dormant.pairs[dormant.of_node[t]];
+              if (pair[0] == j || pair[1] == j)
+                wake(dormant.of_node[t]);
+            }
+        for (const unsigned int i : news.freed)
+          for (unsigned int t = dormant.offsets[i]; t < dormant.offsets[i + 1]; ++t)
+            wake(dormant.of_node[t]);
       }
   }
 
@@ -672,6 +690,8 @@ namespace shard::contact
     const auto velocity = [&](const unsigned int i) {
       return Vec3{{state_[state_record * i + 3], state_[state_record * i + 4], state_[state_record * i + 5]}};
     };
+    // Bonds broken and particles freed since the last step (what bonded() sees).
+    const BondNews news = sync_bonds();
     // Rebuild rule: the rebuild interval, or a node moved more than its reach since the last
     // build.
     bool rebuild = !built_ || step >= last_build_ + rebuild_interval_;
@@ -703,14 +723,10 @@ namespace shard::contact
               }
           }
       }
-    // Bonds broke since the build: their pairs join the candidates.
-    if (rebuild)
-      {
-        seen_broken_ = particles_->broken_bonds();
-        seen_free_   = particles_->free_particles();
-      }
-    else
-      wake_broken_pairs();
+    // Bonds broke since the last step and the candidates were not rebuilt: their pairs join
+    // the candidates.
+    if (!rebuild)
+      wake_broken_pairs(news);
 
     force_old_.swap(force_);
     std::fill(force_.begin(), force_.end(), 0.);

@@ -131,12 +131,19 @@ namespace shard::particles
     stretch_.assign(n, 0.);
     slot_.assign(n, -1);
     value_.assign(n, 0.);
-    bool any = false;
+    bool any          = false;
+    stretch_possible_ = false;
     for (const auto &[name, st] : settings_)
-      any |= st.criterion_text != "none" || st.stretch > 0;
+      {
+        any |= st.criterion_text != "none" || st.stretch > 0;
+        stretch_possible_ |= st.stretch > 0;
+      }
     active_ = spg.active() && any;
     if (!active_)
       return;
+    has_bonds_.resize(n);
+    for (unsigned int i = 0; i < n; ++i)
+      has_bonds_[i] = particles.intact_bonds(i) > 0;
     std::map<const materials::Material *, const std::string *> names;
     for (const auto &name : library_.names())
       names[&library_.get(name)] = &name;
@@ -194,50 +201,64 @@ namespace shard::particles
     const auto        &st = particles.stencils();
     const unsigned int n  = st.n_i;
 
-    // 1. Normalized values and critical stretches of the owned particles, exchanged.
+    // 1. Normalized values and critical stretches of the owned particles, exchanged (0 for a
+    // particle without bonds: no bond of it is left to test).
     for (unsigned int i = 0; i < n; ++i)
       {
         value_[i] = evaluate(spg, i);
-        q.local_element(particles.local_dof(i))     = value_[i];
+        q.local_element(particles.local_dof(i))     = has_bonds_[i] ? value_[i] : 0.;
         q.local_element(particles.local_dof(i) + 1) = stretch_[i];
       }
     q.update_ghost_values();
 
-    // 2. The bonds of the owned rows.
+    // 2. The bonds of the owned rows. Without critical stretches a row can only lose a bond
+    // if its value and the largest value among the coefficients (owned and ghost) together
+    // meet the rule; the other rows are skipped (exact: no bond is missed).
+    double largest = 0;
+    for (unsigned int k = 0; k < st.n_k; ++k)
+      largest = std::max(largest, q.local_element(particles.local_dof(k)));
+    const auto may_break = [&](const double qi) {
+      if (stretch_possible_)
+        return true;
+      return rule_ == BondRule::mean   ? qi + largest >= 2. :
+             rule_ == BondRule::either ? std::max(qi, largest) >= 1. :
+                                         qi >= 1.;
+    };
     const auto                &u = spg.displacement_rows();
     std::vector<ParticleSet::Bond> bonds;
     for (unsigned int i = 0; i < n; ++i)
-      for (unsigned int e = st.g.row_offsets[i]; e < st.g.row_offsets[i + 1]; ++e)
-        {
-          const unsigned int j = st.g.columns[e];
-          if (j == i || !particles.g_entry_intact(e))
-            continue;
-          const double qi = value_[i], qj = q.local_element(particles.local_dof(j));
-          bool         broken = rule_ == BondRule::mean   ? qi + qj >= 2. :
-                                rule_ == BondRule::either ? std::max(qi, qj) >= 1. :
-                                                            std::min(qi, qj) >= 1.;
-          const double si = stretch_[i], sj = q.local_element(particles.local_dof(j) + 1);
-          const double s  = si > 0 && sj > 0 ? std::min(si, sj) : std::max(si, sj);
-          if (!broken && s > 0)
-            {
-              const Point3 &Xi = particles.compact_position(i), &Xj = particles.compact_position(j);
-              double        l0 = 0, l = 0;
-              for (unsigned int c = 0; c < 3; ++c)
-                {
-                  const double r0 = Xj[c] - Xi[c];
-                  const double r  = r0 + u[3 * j + c] - u[3 * i + c];
-                  l0 += r0 * r0;
-                  l += r * r;
-                }
-              const double lambda = std::sqrt(l / l0);
-              broken              = lambda > s || lambda < 1. / s;
-            }
-          if (broken)
-            {
-              const auto a = particles.compact_id(i), b = particles.compact_id(j);
-              bonds.emplace_back(std::min(a, b), std::max(a, b));
-            }
-        }
+      if (has_bonds_[i] && may_break(value_[i]))
+        for (unsigned int e = st.g.row_offsets[i]; e < st.g.row_offsets[i + 1]; ++e)
+          {
+            const unsigned int j = st.g.columns[e];
+            if (j == i || !particles.g_entry_intact(e))
+              continue;
+            const double qi = value_[i], qj = q.local_element(particles.local_dof(j));
+            bool         broken = rule_ == BondRule::mean   ? qi + qj >= 2. :
+                                  rule_ == BondRule::either ? std::max(qi, qj) >= 1. :
+                                                              std::min(qi, qj) >= 1.;
+            const double si = stretch_[i], sj = q.local_element(particles.local_dof(j) + 1);
+            const double s  = si > 0 && sj > 0 ? std::min(si, sj) : std::max(si, sj);
+            if (!broken && s > 0)
+              {
+                const Point3 &Xi = particles.compact_position(i), &Xj = particles.compact_position(j);
+                double        l0 = 0, l = 0;
+                for (unsigned int c = 0; c < 3; ++c)
+                  {
+                    const double r0 = Xj[c] - Xi[c];
+                    const double r  = r0 + u[3 * j + c] - u[3 * i + c];
+                    l0 += r0 * r0;
+                    l += r * r;
+                  }
+                const double lambda = std::sqrt(l / l0);
+                broken              = lambda > s || lambda < 1. / s;
+              }
+            if (broken)
+              {
+                const auto a = particles.compact_id(i), b = particles.compact_id(j);
+                bonds.emplace_back(std::min(a, b), std::max(a, b));
+              }
+          }
 
     // 3. One list on every rank. 4. Free particles, until none is added.
     unsigned long long n_bonds = 0, n_freed = 0;
@@ -251,10 +272,16 @@ namespace shard::particles
           {
             std::vector<unsigned long long> freed;
             for (const unsigned int i : particles.take_changed_rows())
-              if (i < n && particles.intact_bonds(i) < minimum_bonds_ &&
-                  !std::binary_search(particles.free_particles().begin(), particles.free_particles().end(),
-                                      particles.compact_id(i)))
-                freed.push_back(particles.compact_id(i));
+              {
+                if (i >= n)
+                  continue;
+                const unsigned int left = particles.intact_bonds(i);
+                has_bonds_[i]           = left > 0;
+                if (left < minimum_bonds_ &&
+                    !std::binary_search(particles.free_particles().begin(), particles.free_particles().end(),
+                                        particles.compact_id(i)))
+                  freed.push_back(particles.compact_id(i));
+              }
             if (Utilities::MPI::sum(static_cast<unsigned long long>(freed.size()), comm) == 0)
               break;
             const auto all_freed = gather_sorted(comm, freed);

@@ -191,10 +191,14 @@ namespace shard::contact
     /// for a node fast enough to cover that in fewer than reach_steps steps.
     std::vector<double>       reach_;
     static constexpr double   reach_steps = 16;
-    /// The broken-bond and free-particle lists (sorted) when the dormant pairs were last
-    /// updated: what is new since is found by a set difference.
+    /// The broken-bond and free-particle lists (sorted) at the last sync_bonds(): what is new
+    /// since is found by a set difference.
     std::vector<std::pair<unsigned long long, unsigned long long>> seen_broken_;
     std::vector<unsigned long long>                                  seen_free_;
+    /// Per node, whether its particle is free, and the nodes of its broken bonds (both kept by
+    /// sync_bonds(), so that bonded() needs no search in the global lists).
+    std::vector<unsigned char>             free_node_;
+    std::vector<std::vector<unsigned int>> broken_partners_;
     /// Particle id (global DOF / 3) to contact node index, for the particle nodes.
     std::unordered_map<unsigned long long, unsigned int> node_of_particle_;
     const particles::ParticleSet *particles_ = nullptr;
@@ -249,9 +253,19 @@ namespace shard::contact
     /// Whether particles @p a and @p b (node indices) are joined by an intact bond.
     bool
     bonded(unsigned int a, unsigned int b) const;
-    /// Moves the dormant pairs whose bond broke, or one of whose particles became free, since
-    /// the last call (or build) to the candidates.
+    /// Bonds broken and particles freed since the last call, as node indices.
+    struct BondNews
+    {
+      std::vector<std::array<unsigned int, 2>> broken;
+      std::vector<unsigned int>                freed;
+    };
+    /// Brings free_node_ and broken_partners_ up to the particle set's lists and returns what
+    /// is new since the last call.
+    BondNews
+    sync_bonds();
+    /// Moves the dormant pairs of the bonds in @p news (broken, or a particle freed) to the
+    /// candidates.
     void
-    wake_broken_pairs();
+    wake_broken_pairs(const BondNews &news);
   };
 } // namespace shard::contact

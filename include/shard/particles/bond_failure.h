@@ -156,6 +156,11 @@ namespace shard::particles
     std::vector<BondCriterion> criterion_;
     std::vector<double>        threshold_, stretch_, value_;
     std::vector<int>           slot_;
+    /// Per owned particle: whether it still has an intact bond (its value is exchanged as 0
+    /// otherwise, so that free particles do not keep the largest value up).
+    std::vector<unsigned char> has_bonds_;
+    /// Whether some material has a critical stretch (then no row can be skipped by its value).
+    bool stretch_possible_ = false;
 
     /// The normalized failure value of owned particle @p i now.
     double
