@@ -442,9 +442,7 @@ namespace shard::contact
   Contact::BondNews
   Contact::sync_bonds()
   {
-    BondNews news;
-    if (particles_ == nullptr)
-      return news;
+    BondNews    news;
     const auto &broken = particles_->broken_bonds();
     const auto &free   = particles_->free_particles();
     if (broken.size() == seen_broken_.size() && free.size() == seen_free_.size())

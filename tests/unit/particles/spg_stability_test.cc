@@ -49,6 +49,18 @@ namespace
   }
   constexpr Correction none = Correction::none, pg = Correction::petrov_galerkin, cc = Correction::consistent;
 
+  /// Coefficients d (3 per particle) drawn uniformly from [-1e-3, 1e-3] m, reproducibly.
+  std::vector<double>
+  random_coefficients(const unsigned int n_particles, const unsigned int seed)
+  {
+    std::mt19937                           rng(seed);
+    std::uniform_real_distribution<double> r(-1e-3, 1e-3);
+    std::vector<double>                    d(3 * n_particles);
+    for (auto &v : d)
+      v = r(rng);
+    return d;
+  }
+
   /// A particle block n^3 at spacing 1 with hex-mesh nodal volumes and boundary area vectors.
   struct Block
   {
@@ -459,11 +471,7 @@ TEST(SpgStability, ResidualForceIsEnergyGradient)
   const Block        b(5, 1.5, make(Smoothing::two_level, Stabilization::residual, 0.1, none), 0.2);
   const Block        plain(5, 1.5, make(Smoothing::two_level, Stabilization::none, 0, none), 0.2);
   const unsigned int m = b.size();
-  std::mt19937       rng(11);
-  std::uniform_real_distribution<double> r(-1e-3, 1e-3);
-  std::vector<double> d(3 * m);
-  for (auto &v : d)
-    v = r(rng);
+  std::vector<double> d = random_coefficients(m, 11);
   // Stabilization part alone: difference of the two forms (same elastic part).
   const auto fs = b.force(d), fp = plain.force(d);
   double     max_f = 0;
@@ -542,11 +550,7 @@ TEST(SpgStability, PartialRefreshEqualsFullEvaluation)
     {
       Block              b(8, 1.5, options, 0.2);
       const unsigned int m = b.size();
-      std::mt19937       rng(5);
-      std::uniform_real_distribution<double> r(-1e-3, 1e-3);
-      std::vector<double> d(3 * m);
-      for (auto &v : d)
-        v = r(rng);
+      std::vector<double> d = random_coefficients(m, 5);
       // A nonlinear stand-in for V P(F) that differs from point to point.
       const auto vp_of = [&](const std::vector<double> &F, std::vector<double> &VP, const unsigned int i) {
         for (unsigned int k = 0; k < 9; ++k)
