@@ -533,8 +533,6 @@ namespace shard::contact
     double largest_radius = 0;
     for (const auto &p : nodes_)
       largest_radius = std::max(largest_radius, p.radius);
-    BinGrid grid;
-    grid.build(x, 2. * largest_radius + 2. * base);
     for (unsigned int s = 0; s < interactions_.size(); ++s)
       {
         const auto &in = interactions_[s];
@@ -553,27 +551,78 @@ namespace shard::contact
           {
             Dormant &dormant = dormant_[s];
             dormant          = Dormant();
+            std::vector<unsigned char> is_member(n, 0);
+            for (unsigned int i = 0; i < n; ++i)
+              is_member[i] = nodes_[i].particle && member(i, in.bodies);
+            // Each pair is found from the node of larger reach (the smaller index on a tie),
+            // whose reach covers both: found holds (finder, other) of the pairs within
+            // r_I + r_J + reach_I + reach_J.
+            std::vector<std::array<unsigned int, 2>> found;
+            const auto close = [&](const unsigned int i, const unsigned int j) {
+              const Vec3   dx{{x[j][0] - x[i][0], x[j][1] - x[i][1], x[j][2] - x[i][2]}};
+              const double reach = nodes_[i].radius + nodes_[j].radius + reach_[i] + reach_[j];
+              const double d2    = dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2];
+              // Clearly farther (most pairs of the sweep) without the root; the root decides
+              // near the limit.
+              return !(d2 > reach * reach * (1 + 1e-12)) && norm(dx) < reach;
+            };
+            // Two slow particles (reach skin/2) are closer than the grid's cell edge,
+            // 2 r_max + skin: one sweep over neighbouring cells finds them, each pair once.
+            // The particles of the interaction in a grid of their own (no FE nodes to skip).
+            std::vector<unsigned int> members;
+            std::vector<Vec3>         members_x;
+            for (unsigned int i = 0; i < n; ++i)
+              if (is_member[i])
+                {
+                  members.push_back(i);
+                  members_x.push_back(x[i]);
+                }
+            BinGrid member_grid;
+            member_grid.build(members_x, 2. * largest_radius + 2. * base);
+            member_grid.for_each_neighbour_pair([&](const unsigned int p, const unsigned int q) {
+              const unsigned int i = members[std::min(p, q)], j = members[std::max(p, q)];
+              if (reach_[i] == base && reach_[j] == base && close(i, j))
+                found.push_back({{i, j}});
+            });
+            // A fast particle finds the partners of smaller reach around it.
             for (unsigned int i = 0; i < n; ++i)
               {
-                if (!nodes_[i].particle || !member(i, in.bodies))
+                if (!is_member[i] || reach_[i] == base)
                   continue;
-                // Each pair is found from the node of larger reach (the smaller index on a tie),
-                // whose box covers both reaches.
                 const double r = nodes_[i].radius + largest_radius + 2. * reach_[i];
-                grid.for_each_in_box(Vec3{{x[i][0] - r, x[i][1] - r, x[i][2] - r}},
-                                     Vec3{{x[i][0] + r, x[i][1] + r, x[i][2] + r}}, [&](const unsigned int j) {
-                                       if (j == i || reach_[j] > reach_[i] || (reach_[j] == reach_[i] && j < i) ||
-                                           !nodes_[j].particle || !member(j, in.bodies))
-                                         return;
-                                       Vec3 dx{{x[j][0] - x[i][0], x[j][1] - x[i][1], x[j][2] - x[i][2]}};
-                                       if (norm(dx) >= nodes_[i].radius + nodes_[j].radius + reach_[i] + reach_[j])
-                                         return;
-                                       const unsigned int a = std::min(i, j), b = std::max(i, j);
-                                       if (!bonded(a, b))
-                                         cand.push_back({{a, b}});
-                                       else
-                                         dormant.pairs.push_back({{a, b}});
-                                     });
+                member_grid.for_each_in_box(Vec3{{x[i][0] - r, x[i][1] - r, x[i][2] - r}},
+                                            Vec3{{x[i][0] + r, x[i][1] + r, x[i][2] + r}}, [&](const unsigned int t) {
+                                              const unsigned int j = members[t];
+                                              if (j == i || reach_[j] > reach_[i] || (reach_[j] == reach_[i] && j < i))
+                                                return;
+                                              if (close(i, j))
+                                                found.push_back({{i, j}});
+                                            });
+              }
+            // In the order of the finder, then of the other (a counting sort by the finder and
+            // a short sort per finder): the lists do not depend on the grid's cell order.
+            std::vector<unsigned int> first(n + 1, 0);
+            for (const auto &f : found)
+              ++first[f[0] + 1];
+            for (unsigned int i = 0; i < n; ++i)
+              first[i + 1] += first[i];
+            std::vector<unsigned int> others(found.size());
+            {
+              std::vector<unsigned int> next(first.begin(), first.end() - 1);
+              for (const auto &f : found)
+                others[next[f[0]]++] = f[1];
+            }
+            for (unsigned int i = 0; i < n; ++i)
+              {
+                std::sort(others.begin() + first[i], others.begin() + first[i + 1]);
+                for (unsigned int t = first[i]; t < first[i + 1]; ++t)
+                  {
+                    const unsigned int a = std::min(i, others[t]), b = std::max(i, others[t]);
+                    if (!bonded(a, b))
+                      cand.push_back({{a, b}});
+                    else
+                      dormant.pairs.push_back({{a, b}});
+                  }
               }
             dormant.woken.assign(dormant.pairs.size(), 0);
             dormant.offsets.assign(n + 1, 0);
@@ -645,17 +694,29 @@ namespace shard::contact
               if (slave && (!nodes_[i].particle || b.forward))
                 cand.push_back({{i, g}});
             };
+            // The slow nodes that can be a slave of some segment of this interaction, in their
+            // own grid: a segment's box then holds no nodes of its own body that could not
+            // touch it (the projectile's own surface nodes around each of its faces).
+            std::vector<unsigned int> slow;
+            std::vector<Vec3>         slow_x;
+            for (unsigned int i = 0; i < n; ++i)
+              if (reach_[i] == base && (member(i, in.bodies) || (in.symmetric && nodes_[i].body == in.target_body)))
+                {
+                  slow.push_back(i);
+                  slow_x.push_back(x[i]);
+                }
+            BinGrid slow_grid;
+            if (!slow.empty())
+              slow_grid.build(slow_x, 2. * largest_radius + 2. * base);
             double widest = 0;
             for (unsigned int k = 0; k < boxes.size(); ++k)
               {
                 const Box   &b = boxes[k];
                 const double r = b.depth + b.reach + base;
                 widest         = std::max(widest, b.extent + b.depth + b.reach);
-                grid.for_each_in_box(Vec3{{b.lo[0] - r, b.lo[1] - r, b.lo[2] - r}},
-                                     Vec3{{b.hi[0] + r, b.hi[1] + r, b.hi[2] + r}}, [&](const unsigned int i) {
-                                       if (reach_[i] == base)
-                                         consider(i, k);
-                                     });
+                slow_grid.for_each_in_box(Vec3{{b.lo[0] - r, b.lo[1] - r, b.lo[2] - r}},
+                                          Vec3{{b.hi[0] + r, b.hi[1] + r, b.hi[2] + r}},
+                                          [&](const unsigned int t) { consider(slow[t], k); });
               }
             std::vector<Vec3> centres;
             for (const auto &b : boxes)
@@ -765,11 +826,22 @@ namespace shard::contact
             for (std::size_t p = 0; p < candidates_[s].size(); ++p)
               {
                 const unsigned int i = candidates_[s][p][0], j = candidates_[s][p][1];
-                SphereHit          h = sphere_pair(position(i), position(j), nodes_[i].radius, nodes_[j].radius);
                 // Overlap a pair already had when it first met (neighbours whose bond just broke
                 // in a compressed zone) is ignored, and forgotten as the pair separates: no
                 // energy from nothing (LS-DYNA's IGNORE of initial penetrations).
                 double &offset = offset_[s][p];
+                // Clearly apart (most candidates): no overlap, so the offset is forgotten.
+                {
+                  const double *a = &state_[state_record * i], *b = &state_[state_record * j];
+                  const double  d0 = b[0] - a[0], d1 = b[1] - a[1], d2 = b[2] - a[2];
+                  const double  reach = nodes_[i].radius + nodes_[j].radius;
+                  if (d0 * d0 + d1 * d1 + d2 * d2 > reach * reach * (1 + 1e-12))
+                    {
+                      offset = 0;
+                      continue;
+                    }
+                }
+                SphereHit h = sphere_pair(position(i), position(j), nodes_[i].radius, nodes_[j].radius);
                 offset         = std::min(offset < 0 ? std::max(h.overlap, 0.) : offset, std::max(h.overlap, 0.));
                 h.overlap -= offset;
                 if (h.overlap <= 0)
@@ -811,16 +883,29 @@ namespace shard::contact
                   {
                     plane_stamp_[g] = step;
                     pl              = mean_plane(xs);
+                    double r2       = 0;
+                    for (unsigned int c = 0; c < 3; ++c)
+                      pl.mid[c] = 0.25 * (xs[0][c] + xs[1][c] + xs[2][c] + xs[3][c]);
+                    for (const auto &xv : xs)
+                      r2 = std::max(r2, (xv[0] - pl.mid[0]) * (xv[0] - pl.mid[0]) +
+                                          (xv[1] - pl.mid[1]) * (xv[1] - pl.mid[1]) +
+                                          (xv[2] - pl.mid[2]) * (xv[2] - pl.mid[2]));
+                    pl.sphere2 = 1.0201 * r2 + depth * depth;
                   }
+                const Vec3 p = position(i);
+                {
+                  const double d0 = p[0] - pl.mid[0], d1 = p[1] - pl.mid[1], d2 = p[2] - pl.mid[2];
+                  if (d0 * d0 + d1 * d1 + d2 * d2 > pl.sphere2)
+                    continue;
+                }
                 if (pl.usable)
                   {
-                    const Vec3   p = position(i);
                     const double h = (p[0] - pl.centre[0]) * pl.normal[0] + (p[1] - pl.centre[1]) * pl.normal[1] +
                                      (p[2] - pl.centre[2]) * pl.normal[2];
                     if (h > pl.half_width || h < -pl.half_width - depth)
                       continue;
                   }
-                const SegmentHit h = point_segment(position(i), xs, depth);
+                const SegmentHit h = point_segment(p, xs, depth);
                 if (!h.hit)
                   continue;
                 if (best_[i] < 0)
@@ -875,6 +960,8 @@ namespace shard::contact
     const bool first = x_old_.empty();
     if (first)
       x_old_.assign(3 * owned_local_dof_.size(), 0.);
+    // (A local sum: the member would be stored and reloaded at every term; same order, same value.)
+    double energy = energy_;
     for (std::size_t k = 0; k < owned_local_dof_.size(); ++k)
       {
         const unsigned int i = owned_begin_ + k;
@@ -883,10 +970,11 @@ namespace shard::contact
             const double x = state_[state_record * i + c];
             f.local_element(owned_local_dof_[k] + c) += force_[3 * i + c];
             if (!first)
-              energy_ -= 0.5 * (force_old_[3 * i + c] + force_[3 * i + c]) * (x - x_old_[3 * k + c]);
+              energy -= 0.5 * (force_old_[3 * i + c] + force_[3 * i + c]) * (x - x_old_[3 * k + c]);
             x_old_[3 * k + c] = x;
           }
       }
+    energy_ = energy;
     // Friction dissipation (replicated on every rank, counted on rank 0), mid-step velocities.
     if (Utilities::MPI::this_mpi_process(comm_) == 0)
       friction_energy_ += friction_power * dt;

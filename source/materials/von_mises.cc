@@ -249,13 +249,16 @@ namespace shard::materials
         internal::trial_deviator(sig, d, two_g, s);
         const double q2 = 1.5 * internal::contract(s, s);
 
-        const double r = (rate_on && rate > 0.) ? 1. + std::pow(rate * inv_c, inv_p) : 1.;
-
         const double e_n = st[slot_plastic_strain];
         unsigned int k   = find_segment(e_tab, n_rows, e_n);
-        const double sy  = r * (s_tab[k] + h_tab[k] * (e_n - e_tab[k]));
+        const double sy0 = s_tab[k] + h_tab[k] * (e_n - e_tab[k]);
 
         double scale = 1.;
+        // The rate factor R >= 1 only raises the yield stress: a trial stress within the static
+        // yield surface stays elastic whatever the rate, so the power is evaluated only for
+        // trial stresses beyond it (the same result, without a pow() per elastic point).
+        const double r = (q2 > sy0 * sy0 && rate_on && rate > 0.) ? 1. + std::pow(rate * inv_c, inv_p) : 1.;
+        const double sy = r * sy0;
         if (q2 > sy * sy)
           {
             // Walk the linear segments of f(e) = q* - 3G (e - e_n) - R sigma_y(e), which

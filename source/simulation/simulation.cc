@@ -317,8 +317,11 @@ namespace shard
                     f_ += f_ext_;
                     // The kick's kinetic energy (product form) sees the force change at once:
                     // dt/2 (f_new - f_old) . v^{n+1/2}, booked with the bond energy.
+                    // (A local sum in the same order: the member would be reloaded at every term.)
+                    double bond_energy = bond_energy_;
                     for (unsigned int i = 0; i < f_ext_.locally_owned_size(); ++i)
-                      bond_energy_ += 0.5 * dt_ * f_ext_.local_element(i) * v_.local_element(i);
+                      bond_energy += 0.5 * dt_ * f_ext_.local_element(i) * v_.local_element(i);
+                    bond_energy_ = bond_energy;
                     f_ext_ = 0;
                     conditions_.add_external_forces(t_, f_ext_);
                     bond_energy_ += w - stabilization_energy_;

@@ -164,6 +164,20 @@ namespace shard::contact
     void
     for_each_in_box(const Vec3 &lo, const Vec3 &hi, Visit &&visit) const;
 
+    /**
+     * @brief Calls visit(i, j) once for every unordered pair of binned points in the same cell or
+     * in two cells that share a face, an edge or a corner, so every pair closer than
+     * cell_size() is visited (and more; the caller tests the distance).
+     *
+     * Each cell is paired with itself and its 13 neighbours ahead of it in the linear order (a
+     * half stencil), so no pair is visited twice and nothing is sorted. The order of the calls
+     * follows the cells, not the point indices; i and j come in either order.
+     * @param visit callable taking two unsigned int point indices
+     */
+    template <typename Visit>
+    void
+    for_each_neighbour_pair(Visit &&visit) const;
+
     /// Number of binned points.
     unsigned int
     size() const;
@@ -252,5 +266,41 @@ namespace shard::contact
     found.clear();
     if (found.capacity() > slot.capacity())
       slot = std::move(found);
+  }
+
+
+  template <typename Visit>
+  void
+  BinGrid::for_each_neighbour_pair(Visit &&visit) const
+  {
+    if (sorted_index_.empty())
+      return;
+    // The 13 offsets (di, dj, dk) ahead of (0, 0, 0) in the order k, then j, then i.
+    static constexpr int ahead[13][3] = {{1, 0, 0},  {-1, 1, 0}, {0, 1, 0},  {1, 1, 0},  {-1, -1, 1},
+                                         {0, -1, 1}, {1, -1, 1}, {-1, 0, 1}, {0, 0, 1},  {1, 0, 1},
+                                         {-1, 1, 1}, {0, 1, 1},  {1, 1, 1}};
+    const long n0 = static_cast<long>(n_[0]), n1 = static_cast<long>(n_[1]), n2 = static_cast<long>(n_[2]);
+    for (long ck = 0; ck < n2; ++ck)
+      for (long cj = 0; cj < n1; ++cj)
+        for (long ci = 0; ci < n0; ++ci)
+          {
+            const std::size_t c = ci + n0 * (cj + n1 * ck);
+            const unsigned int begin = cell_offsets_[c], end = cell_offsets_[c + 1];
+            if (begin == end)
+              continue;
+            for (unsigned int t = begin; t < end; ++t)
+              for (unsigned int u = t + 1; u < end; ++u)
+                visit(sorted_index_[t], sorted_index_[u]);
+            for (const auto &o : ahead)
+              {
+                const long i = ci + o[0], j = cj + o[1], k = ck + o[2];
+                if (i < 0 || i >= n0 || j < 0 || j >= n1 || k >= n2)
+                  continue;
+                const std::size_t d = i + n0 * (j + n1 * k);
+                for (unsigned int t = begin; t < end; ++t)
+                  for (unsigned int u = cell_offsets_[d]; u < cell_offsets_[d + 1]; ++u)
+                    visit(sorted_index_[t], sorted_index_[u]);
+              }
+          }
   }
 } // namespace shard::contact

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <random>
 #include <stdexcept>
 #include <vector>
@@ -664,4 +665,45 @@ TEST(BinGrid, EmptyAndInvalid)
   EXPECT_THROW(grid.build(points, std::numeric_limits<double>::infinity()), std::invalid_argument);
   const std::vector<Vec3> bad = {v3(0, 0, 0), v3(std::numeric_limits<double>::quiet_NaN(), 1, 1)};
   EXPECT_THROW(grid.build(bad, 1.0), std::invalid_argument);
+}
+
+TEST(BinGrid, NeighbourPairsCoverEveryCloserPairOnce)
+{
+  // Every pair closer than the cell edge is visited exactly once, whatever the cell size the
+  // cap leaves (a flat cloud with duplicate points, two cell sizes, one of them capped).
+  for (const bool flat : {false, true})
+    for (const double h : {0.1, 1e-4})
+      {
+        const std::vector<Vec3> points = random_points(flat ? 23 : 29, flat);
+        BinGrid                 grid;
+        grid.build(points, h);
+        const double                                          reach = grid.cell_size();
+        std::map<std::pair<unsigned int, unsigned int>, int> seen;
+        grid.for_each_neighbour_pair([&](const unsigned int i, const unsigned int j) {
+          ASSERT_NE(i, j);
+          ++seen[{std::min(i, j), std::max(i, j)}];
+        });
+        std::size_t n_close = 0;
+        for (unsigned int i = 0; i < points.size(); ++i)
+          for (unsigned int j = i + 1; j < points.size(); ++j)
+            {
+              double d2 = 0;
+              for (unsigned int k = 0; k < 3; ++k)
+                d2 += (points[i][k] - points[j][k]) * (points[i][k] - points[j][k]);
+              if (d2 < reach * reach)
+                {
+                  ++n_close;
+                  const auto it = seen.find({i, j});
+                  ASSERT_TRUE(it != seen.end()) << "pair " << i << ", " << j << " at " << std::sqrt(d2);
+                }
+            }
+        for (const auto &[pair, count] : seen)
+          EXPECT_EQ(count, 1) << "pair " << pair.first << ", " << pair.second;
+        EXPECT_GT(n_close, 100u); // not a vacuous check
+      }
+  BinGrid empty;
+  empty.build({}, 1.0);
+  bool visited = false;
+  empty.for_each_neighbour_pair([&](unsigned int, unsigned int) { visited = true; });
+  EXPECT_FALSE(visited);
 }
