@@ -2,8 +2,12 @@
 #include <shard/base/function.h>
 #include <shard/bc/boundary_conditions.h>
 
+#include <deal.II/base/mpi.h>
+
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <sstream>
 
 namespace shard::bc
 {
@@ -33,8 +37,11 @@ namespace shard::bc
         prm.add_parameter("type", c.type,
                           "fixed: zero velocity in 'components'; velocity: prescribed velocity 'function' in "
                           "'components'; traction: force per reference area 'function'; rigid wall: "
-                          "frictionless plane through 'wall point' with 'wall normal' towards the body.",
-                          Patterns::Selection("fixed|velocity|traction|rigid wall"));
+                          "frictionless plane through 'wall point' with 'wall normal' towards the body; blast: "
+                          "Kingery-Bulmash blast pressure of a charge ('charge mass', 'tnt equivalence', "
+                          "'charge position', 'burst') on the reference faces, with the angle of incidence "
+                          "(doc/manual/blast.md).",
+                          Patterns::Selection("fixed|velocity|traction|rigid wall|blast"));
         prm.add_parameter("body", c.body, "Name of the body the condition acts on.");
         prm.add_parameter("boundary id", c.boundary_id,
                           "Boundary id of the body's faces (box: 0 x-, 1 x+, 2 y-, 3 y+, 4 z-, 5 z+ in the "
@@ -49,6 +56,23 @@ namespace shard::bc
         prm.add_parameter("wall point", c.wall_point, "Rigid wall: a point 'x, y, z' on the plane. Unit: m.");
         prm.add_parameter("wall normal", c.wall_normal,
                           "Rigid wall: normal 'x, y, z' pointing towards the body (any length > 0). Unit: 1.");
+        prm.add_parameter("charge mass", c.charge_mass,
+                          "Blast: mass of the explosive charge; times 'tnt equivalence' it gives the TNT mass W of "
+                          "the Kingery-Bulmash fits. Unit: kg. Range: > 0.",
+                          Patterns::Double());
+        prm.add_parameter("tnt equivalence", c.tnt_equivalence,
+                          "Blast: TNT equivalence factor of the explosive (1 for TNT; e.g. about 1.2 to 1.4 for C-4, "
+                          "depending on the quantity matched). Unit: 1. Range: > 0.",
+                          Patterns::Double());
+        prm.add_parameter("charge position", c.charge_position,
+                          "Blast: centre 'x, y, z' of the charge; for a hemispherical surface burst the point "
+                          "on the ground at the charge. The scaled distance Z = R / W^(1/3) of every loaded face "
+                          "centre must lie in the Kingery-Bulmash range (hemispherical 0.0674 to 39.67, "
+                          "spherical 0.0532 to 39.67 m/kg^(1/3)). Unit: m.");
+        prm.add_parameter("burst", c.burst,
+                          "Blast: hemispherical (charge on the ground, UFC 3-340-02 Fig. 2-15) or spherical "
+                          "(free-air burst, Fig. 2-7).",
+                          Patterns::Selection("hemispherical|spherical"));
         prm.leave_subsection();
       }
     prm.leave_subsection();
@@ -108,11 +132,39 @@ namespace shard::bc
             if (!(std::hypot(n[0], n[1], n[2]) > 0))
               source.fail(path + "wall normal", c.wall_normal, "must have a length > 0.");
           }
+        if (c.type == "blast")
+          {
+            const auto text = [](const double x) {
+              std::ostringstream s;
+              s << x;
+              return s.str();
+            };
+            if (!(c.charge_mass > 0) || !std::isfinite(c.charge_mass))
+              source.fail(path + "charge mass", text(c.charge_mass), "must be > 0. Unit: kg.");
+            if (!(c.tnt_equivalence > 0) || !std::isfinite(c.tnt_equivalence))
+              source.fail(path + "tnt equivalence", text(c.tnt_equivalence), "must be > 0. Unit: 1.");
+            try
+              {
+                base::parse_point(c.charge_position);
+              }
+            catch (const std::invalid_argument &e)
+              {
+                source.fail(path + "charge position", c.charge_position, std::string(e.what()) + ". Unit: m.");
+              }
+            try
+              {
+                parse_burst(c.burst);
+              }
+            catch (const std::invalid_argument &e)
+              {
+                source.fail(path + "burst", c.burst, "must be hemispherical or spherical.");
+              }
+          }
       }
   }
 
   void
-  BoundaryConditions::prepare(const mesh::Discretization &discretization)
+  BoundaryConditions::prepare(const mesh::Discretization &discretization, const base::PrmSource &source)
   {
     discretization_ = &discretization;
     active_.clear();
@@ -127,6 +179,8 @@ namespace shard::bc
         a.p = &c;
         if (c.type == "traction")
           a.areas = discretization.boundary_node_areas(body, c.boundary_id);
+        else if (c.type == "blast")
+          prepare_blast(discretization, body, source, a);
         else
           a.nodes = discretization.boundary_nodes(body, c.boundary_id);
         if (c.type == "fixed" || c.type == "velocity")
@@ -155,6 +209,77 @@ namespace shard::bc
                           [](const Active &a) { return a.p->type != "rigid wall"; });
   }
 
+  void
+  BoundaryConditions::prepare_blast(const mesh::Discretization &discretization, const unsigned int body,
+                                    const base::PrmSource &source, Active &a)
+  {
+    const auto       &c    = *a.p;
+    const std::string path = "I - Boundary conditions/" + c.name + "/";
+    const BlastCharge charge(c.charge_mass * c.tnt_equivalence, base::parse_point(c.charge_position),
+                             parse_burst(c.burst));
+    const auto       &partitioner = *discretization.partitioner();
+    // Every face with an owned node: such a face belongs to an owned or a ghost cell, so each
+    // rank sees all the faces of its nodes and needs no exchange of forces.
+    double z_lo = std::numeric_limits<double>::max(), z_hi = 0;
+    unsigned int n_faces = 0;
+    std::vector<std::pair<std::array<double, 3>, std::array<double, 3>>> points; // centre, area vector
+    for (const auto &cell : discretization.dof_handler().active_cell_iterators())
+      if ((cell->is_locally_owned() || cell->is_ghost()) && cell->material_id() == body)
+        for (const unsigned int f : cell->face_indices())
+          if (cell->face(f)->at_boundary() &&
+              (c.boundary_id < 0 || cell->face(f)->boundary_id() == static_cast<types::boundary_id>(c.boundary_id)))
+            {
+              Active::BlastFace face;
+              for (unsigned int v = 0; v < 4; ++v)
+                {
+                  const auto dof = cell->face(f)->vertex_dof_index(v, 0);
+                  if (partitioner.in_local_range(dof))
+                    face.nodes.push_back(partitioner.global_to_local(dof));
+                }
+              if (face.nodes.empty())
+                continue;
+              const auto A = mesh::outward_area_vector(cell, f);
+              const auto x = cell->face(f)->center();
+              face.area    = {{A[0], A[1], A[2]}};
+              const std::array<double, 3> centre{{x[0], x[1], x[2]}};
+              const double                z = charge.scaled_distance(centre);
+              z_lo                          = std::min(z_lo, z);
+              z_hi                          = std::max(z_hi, z);
+              points.emplace_back(centre, face.area);
+              ++n_faces;
+              a.blast_faces.push_back(std::move(face));
+            }
+    const auto comm = discretization.communicator();
+    z_lo            = Utilities::MPI::min(z_lo, comm);
+    z_hi            = Utilities::MPI::max(z_hi, comm);
+    if (Utilities::MPI::sum(n_faces, comm) == 0)
+      throw base::InputError(path + "boundary id = " + std::to_string(c.boundary_id) + ": body '" + c.body +
+                             "' has no boundary faces with this id.");
+    a.z_range              = {z_lo, z_hi};
+    const Burst burst      = parse_burst(c.burst);
+    const double lo = kb_z_min(burst), hi = kb_z_max(burst);
+    if (z_lo < lo * (1 - 1e-12) || z_hi > hi * (1 + 1e-12))
+      {
+        std::ostringstream s;
+        s << "the loaded faces of body '" << c.body << "' (boundary id " << c.boundary_id
+          << ") lie at scaled distances Z = " << z_lo << " to " << z_hi << " m/kg^(1/3) from the charge of "
+          << charge.mass() << " kg TNT; the Kingery-Bulmash " << c.burst << " fits hold for " << lo
+          << " <= Z <= " << hi << " m/kg^(1/3) (Z = R / W^(1/3); move the charge or change 'charge mass').";
+        source.fail(path + "charge position", c.charge_position, s.str());
+      }
+    for (unsigned int k = 0; k < points.size(); ++k)
+      a.blast_faces[k].load = charge.at(points[k].first, points[k].second);
+  }
+
+  std::pair<double, double>
+  BoundaryConditions::scaled_distance_range(const std::string &name) const
+  {
+    for (const auto &a : active_)
+      if (a.p->name == name)
+        return a.z_range;
+    return {0., 0.};
+  }
+
   std::array<double, 3>
   BoundaryConditions::wall_normal(const std::string &name) const
   {
@@ -167,24 +292,73 @@ namespace shard::bc
   void
   BoundaryConditions::add_external_forces(const double t, mesh::Vector &f) const
   {
-    const auto &X = discretization_->reference_positions();
     for (const auto &a : active_)
-      if (a.p->type == "traction")
+      add_forces(a, t, f);
+  }
+
+  std::array<double, 3>
+  BoundaryConditions::applied_force(const std::string &name, const double t) const
+  {
+    std::array<double, 3> sum{{0, 0, 0}};
+    for (const auto &a : active_)
+      if (a.p->name == name)
         {
-          a.function->set_time(t);
-          Vector<double> value(3);
-          if (a.time_only)
-            a.function->vector_value(Point<3>(), value);
-          for (const auto &[node, area] : a.areas)
+          if (a.p->type == "blast")
+            for (const auto &face : a.blast_faces)
+              {
+                const double p = face.load.pressure(t);
+                for (unsigned int i = 0; i < 3; ++i)
+                  sum[i] -= p * face.area[i] * 0.25 * face.nodes.size();
+              }
+          else if (a.p->type == "traction")
             {
-              if (!a.time_only)
-                a.function->vector_value(Point<3>(X.local_element(node), X.local_element(node + 1),
-                                                  X.local_element(node + 2)),
-                                         value);
-              for (unsigned int i = 0; i < 3; ++i)
-                f.local_element(node + i) += value[i] * area;
+              const auto    &X = discretization_->reference_positions();
+              Vector<double> value(3);
+              a.function->set_time(t);
+              for (const auto &[node, area] : a.areas)
+                {
+                  a.function->vector_value(Point<3>(X.local_element(node), X.local_element(node + 1),
+                                                    X.local_element(node + 2)),
+                                           value);
+                  for (unsigned int i = 0; i < 3; ++i)
+                    sum[i] += value[i] * area;
+                }
             }
         }
+    return sum;
+  }
+
+  void
+  BoundaryConditions::add_forces(const Active &a, const double t, mesh::Vector &f) const
+  {
+    const auto &X = discretization_->reference_positions();
+    if (a.p->type == "blast")
+      // Reference-face pressure, one point per face: -p(x_f, t) A_f / 4 at each node.
+      for (const auto &face : a.blast_faces)
+        {
+          const double p = face.load.pressure(t);
+          if (p == 0)
+            continue;
+          for (const unsigned int node : face.nodes)
+            for (unsigned int i = 0; i < 3; ++i)
+              f.local_element(node + i) -= 0.25 * p * face.area[i];
+        }
+    else if (a.p->type == "traction")
+      {
+        a.function->set_time(t);
+        Vector<double> value(3);
+        if (a.time_only)
+          a.function->vector_value(Point<3>(), value);
+        for (const auto &[node, area] : a.areas)
+          {
+            if (!a.time_only)
+              a.function->vector_value(Point<3>(X.local_element(node), X.local_element(node + 1),
+                                                X.local_element(node + 2)),
+                                       value);
+            for (unsigned int i = 0; i < 3; ++i)
+              f.local_element(node + i) += value[i] * area;
+          }
+      }
   }
 
   std::pair<double, double>

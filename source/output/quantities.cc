@@ -22,7 +22,7 @@ namespace shard::output
       {"reaction", 2},       {"max_coordinate", 2}, {"min_coordinate", 2},    {"max_radius", 2},
       {"stress", 4},         {"velocity", 4},       {"max_plastic_strain", 1}, {"odd_even", 1},
       {"l2_error", 4},       {"kinetic_energy", 4}, {"stress_range", 2},
-      {"mass", 1},           {"mean_velocity", 2}};
+      {"mass", 1},           {"mean_velocity", 2},  {"load", 2}};
 
     int
     axis(const std::string &s)
@@ -40,7 +40,8 @@ namespace shard::output
     prm.enter_subsection("L - Quantities");
     prm.add_parameter("quantities", text_,
                       "Columns added to history.csv: entries 'name = kind arguments' separated by ';'. "
-                      "Kinds: reaction <condition> <x|y|z|n>; max_coordinate <body> <x|y|z>; "
+                      "Kinds: reaction <condition> <x|y|z|n>; load <condition> <x|y|z>: sum of the forces a "
+                      "traction or blast condition applies at this time (N); max_coordinate <body> <x|y|z>; "
                       "min_coordinate <body> <x|y|z>; max_radius <body> <axis x|y|z> [boundary id]; "
                       "stress <x> <y> <z> <xx|yy|zz|yz|xz|xy|vm|p>; velocity <x> <y> <z> <x|y|z>; "
                       "max_plastic_strain <body|all>; odd_even <particle body>: |sum_I s_I u_I| / sum_I |u_I| with "
@@ -83,7 +84,7 @@ namespace shard::output
           {
             error = "entry '" + entry + "': unknown kind '" + it.kind +
                     "'; known: reaction, max_coordinate, min_coordinate, max_radius, stress, velocity, "
-                    "max_plastic_strain, odd_even, l2_error, kinetic_energy, stress_range, mass.";
+                    "max_plastic_strain, odd_even, l2_error, kinetic_energy, stress_range, mass, mean_velocity, load.";
             return {};
           }
         const bool optional_id = it.kind == "max_radius" && it.args.size() == 3;
@@ -152,6 +153,18 @@ namespace shard::output
             it.component = it.args[1] == "n" ? 3 : axis(it.args[1]);
             if (it.component < 0)
               bad(it, "component must be x, y, z or n.");
+          }
+        else if (it.kind == "load")
+          {
+            const auto &names = conditions.names();
+            if (std::find(names.begin(), names.end(), it.args[0]) == names.end())
+              bad(it, "no boundary condition named '" + it.args[0] + "'.");
+            const auto &type = conditions.type(it.args[0]);
+            if (type != "traction" && type != "blast")
+              bad(it, "condition '" + it.args[0] + "' is a " + type + " condition; load needs traction or blast.");
+            it.component = axis(it.args[1]);
+            if (it.component < 0)
+              bad(it, "component must be x, y or z.");
           }
         else if (it.kind == "max_coordinate" || it.kind == "min_coordinate" || it.kind == "max_radius")
           {
@@ -333,6 +346,8 @@ namespace shard::output
             else
               value = r[it.component];
           }
+        else if (it.kind == "load")
+          value = conditions_->applied_force(it.args[0], t)[it.component];
         else if (it.kind == "max_coordinate" || it.kind == "min_coordinate")
           {
             const double sign = it.kind == "max_coordinate" ? 1. : -1.;

@@ -114,7 +114,7 @@ namespace shard
     hex_.prepare(discretization_, materials_, conversion_.converted_cells());
     spg_.prepare(discretization_, particles_, materials_);
     bonds_.prepare(particles_, spg_, source_);
-    conditions_.prepare(discretization_);
+    conditions_.prepare(discretization_, source_);
     output_.prepare(discretization_, hex_, spg_);
     quantities_.prepare(discretization_, hex_, conditions_, spg_);
     fragments_.prepare(discretization_, hex_, particles_);

@@ -2,12 +2,13 @@
 /**
  * @file boundary_conditions.h
  * @brief Kinematic (fixed, prescribed velocity, frictionless rigid wall) and force-type
- *        (traction) boundary conditions. Subsection `I - Boundary conditions`.
+ *        (traction, blast) boundary conditions. Subsection `I - Boundary conditions`.
  * @ingroup bc
  */
 #pragma once
 
 #include <shard/base/parameters.h>
+#include <shard/bc/blast_load.h>
 #include <shard/mesh/discretization.h>
 
 #include <deal.II/base/function_parser.h>
@@ -25,7 +26,7 @@ namespace shard::bc
   {
     /// Name (the subsection name).
     std::string name;
-    /// fixed, velocity, traction or rigid wall.
+    /// fixed, velocity, traction, rigid wall or blast.
     std::string type = "fixed";
     /// Body the condition acts on.
     std::string body = "body";
@@ -39,6 +40,14 @@ namespace shard::bc
     std::string wall_point = "0, 0, 0";
     /// Rigid wall: normal pointing towards the bodies (normalised internally).
     std::string wall_normal = "0, 0, 1";
+    /// Blast: mass of the charge (kg); the TNT-equivalent mass is charge_mass * tnt_equivalence.
+    double charge_mass = 1.;
+    /// Blast: TNT equivalence factor of the explosive (1 for TNT).
+    double tnt_equivalence = 1.;
+    /// Blast: charge centre "x, y, z" (m).
+    std::string charge_position = "0, 0, 0";
+    /// Blast: hemispherical (surface burst) or spherical (free-air burst).
+    std::string burst = "hemispherical";
   };
 
   /**
@@ -49,6 +58,13 @@ namespace shard::bc
    * enters the energy balance. A frictionless rigid wall stops the normal velocity of every
    * boundary node whose predicted position would cross the plane and releases the node when
    * its free motion leaves the plane (a unilateral constraint).
+   *
+   * A blast condition is a reference-face pressure (the load does not follow the deforming
+   * surface): each loaded face gets, at its reference centre x_f with reference outward area
+   * vector A_f, the Kingery-Bulmash / Friedlander overpressure p_f(t) of BlastCharge::at()
+   * (scaled distance, arrival time and angle of incidence of x_f), and each of its four nodes
+   * the force -p_f(t) A_f / 4. Like a traction, its work enters `external_work`
+   * (doc/manual/blast.md).
    */
   class BoundaryConditions : public base::ParameterOwner
   {
@@ -59,9 +75,13 @@ namespace shard::bc
     void
     check_parameters(const base::PrmSource &source) const override;
 
-    /// Builds node lists and parses functions. @note Collective.
+    /**
+     * @brief Builds node and face lists, parses functions and evaluates the blast parameters of
+     * every loaded face. A blast face outside the Kingery-Bulmash range of scaled distance throws
+     * InputError naming the key `charge position` in @p source. @note Collective.
+     */
     void
-    prepare(const mesh::Discretization &discretization);
+    prepare(const mesh::Discretization &discretization, const base::PrmSource &source = base::PrmSource());
 
     /// Names in input order.
     const std::vector<std::string> &
@@ -88,9 +108,23 @@ namespace shard::bc
     std::vector<std::pair<std::string, int>>
     faces() const;
 
-    /// Adds traction forces at time @p t into the owned entries of @p f.
+    /// Adds traction and blast forces at time @p t into the owned entries of @p f.
     void
     add_external_forces(double t, mesh::Vector &f) const;
+
+    /**
+     * @brief Sum of the forces of traction or blast condition @p name over this rank's owned
+     * nodes at time @p t (N); zero for other types.
+     */
+    std::array<double, 3>
+    applied_force(const std::string &name, double t) const;
+
+    /**
+     * @brief Smallest and largest scaled distance Z (m/kg^(1/3)) of the loaded faces of blast
+     * condition @p name over all ranks, as found by prepare() (both 0 for other types or no faces).
+     */
+    std::pair<double, double>
+    scaled_distance_range(const std::string &name) const;
 
     /**
      * @brief Applies the kinematic conditions to the velocity of the next half step.
@@ -135,7 +169,23 @@ namespace shard::bc
       std::unique_ptr<dealii::FunctionParser<3>>          function;
       bool                                                time_only = false;
       std::array<double, 3>                               point{}, normal{};
+      /// Blast: one entry per loaded face that has an owned node.
+      struct BlastFace
+      {
+        BlastPoint            load;
+        std::array<double, 3> area{}; // reference outward area vector (m^2)
+        std::vector<unsigned int> nodes; // first local DOF of each owned node of the face
+      };
+      std::vector<BlastFace>    blast_faces;
+      std::pair<double, double> z_range{0., 0.};
     };
+
+    void
+    add_forces(const Active &a, double t, mesh::Vector &f) const;
+
+    void
+    prepare_blast(const mesh::Discretization &discretization, unsigned int body, const base::PrmSource &source,
+                  Active &a);
 
     std::string                                                  names_text_;
     std::vector<std::string>                                     names_;

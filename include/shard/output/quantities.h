@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 /**
  * @file quantities.h
- * @brief Scene quantities of interest (subsection `L - Quantities`): reaction forces,
+ * @brief Scene quantities of interest (subsection `L - Quantities`): reaction forces, applied loads,
  *        extents, point stresses and velocities, maxima of history variables, odd-even
  *        indicator, L2 error against an exact displacement.
  * @ingroup output
@@ -28,6 +28,8 @@ namespace shard::output
    * Syntax of `quantities`: entries `name = kind arguments` separated by ';'. Kinds:
    * - `reaction <condition> <x|y|z|n>`: sum of the reaction forces of a kinematic condition (N);
    *   n is the component along a rigid wall's normal.
+   * - `load <condition> <x|y|z>`: sum of the forces a traction or blast condition applies at the
+   *   time of the row (N).
    * - `max_coordinate <body> <x|y|z>`, `min_coordinate <body> <x|y|z>`: extent of the deformed body (m).
    * - `max_radius <body> <x|y|z> [boundary id]`: largest distance of a node from the axis through
    *   the origin (m), over the body or the nodes of one boundary id.
