@@ -579,7 +579,14 @@ namespace shard::contact
                 }
             BinGrid member_grid;
             member_grid.build(members_x, 2. * largest_radius + 2. * base);
+            // (Pairs farther than the largest slow contact distance are dropped on the member
+            // positions, before any look-up by node.)
+            const double widest_slow = (2. * largest_radius + 2. * base) * (2. * largest_radius + 2. * base) * (1 + 1e-12);
             member_grid.for_each_neighbour_pair([&](const unsigned int p, const unsigned int q) {
+              const Vec3  &a = members_x[p], &b = members_x[q];
+              const double d0 = b[0] - a[0], d1 = b[1] - a[1], d2 = b[2] - a[2];
+              if (d0 * d0 + d1 * d1 + d2 * d2 > widest_slow)
+                return;
               const unsigned int i = members[std::min(p, q)], j = members[std::max(p, q)];
               if (reach_[i] == base && reach_[j] == base && close(i, j))
                 found.push_back({{i, j}});
