@@ -17,6 +17,24 @@ namespace shard::mesh
 {
   using namespace dealii;
 
+  double
+  ogive_nose_length(const double radius, const double crh, const double tip)
+  {
+    const double rho = 2. * radius * crh, c = rho - radius, r_m = tip * radius;
+    return std::sqrt(rho * rho - (r_m + c) * (r_m + c));
+  }
+
+  double
+  ogive_volume(const double radius, const double length, const double crh, const double tip)
+  {
+    // pi int_0^s_m (sqrt(rho^2 - s^2) - c)^2 ds + pi R^2 (L - s_m), with
+    // int sqrt(rho^2 - s^2) ds = (s sqrt(rho^2 - s^2) + rho^2 asin(s / rho)) / 2.
+    const double rho = 2. * radius * crh, c = rho - radius, s = ogive_nose_length(radius, crh, tip);
+    const double nose = (rho * rho + c * c) * s - s * s * s / 3. -
+                        c * (s * std::sqrt(rho * rho - s * s) + rho * rho * std::asin(s / rho));
+    return M_PI * (nose + radius * radius * (length - s));
+  }
+
   namespace
   {
     /// Axis letter -> index; -1 if invalid.
@@ -66,7 +84,7 @@ namespace shard::mesh
             return [](const Point<3> &p) { return p; };
           return [=](const Point<3> &p) { return Point<3>(to_axis(p) + o); };
         }
-      if (b.shape == "cylinder")
+      if (b.shape == "cylinder" || b.shape == "ogive")
         {
           // The coarse cylinder has 5 cells per cross-section; after n refinements the mean
           // cell side in the cross-section is sqrt(pi R^2 / (5 4^n)) = 0.79 R / 2^n.
@@ -81,7 +99,24 @@ namespace shard::mesh
           GridGenerator::subdivided_cylinder(tria, n_axial, b.radius, b.length / 2);
           tria.refine_global(n_ref);
           const double h = b.length / 2;
-          return [=](const Point<3> &p) { return Point<3>(to_axis(p + Point<3>(h, 0, 0)) + o); };
+          if (b.shape == "cylinder")
+            return [=](const Point<3> &p) { return Point<3>(to_axis(p + Point<3>(h, 0, 0)) + o); };
+          // Tangent ogive nose at the start face: arc radius rho = 2 R CRH, centred at distance
+          // rho - R from the axis on the shoulder plane; r(s) = sqrt(rho^2 - s^2) - (rho - R) at
+          // distance s from the shoulder, cut at the meplat radius r_m: nose length s_m. The
+          // cross-section of the cylinder mesh at axial x < s_m is scaled by r(s_m - x) / R.
+          const double R = b.radius, rho = 2. * R * b.nose_crh, c = rho - R;
+          const double s_m = ogive_nose_length(R, b.nose_crh, b.nose_tip);
+          return [=](const Point<3> &p) {
+            Point<3> q = p + Point<3>(h, 0, 0);
+            if (q[0] < s_m)
+              {
+                const double s = s_m - q[0], f = (std::sqrt(rho * rho - s * s) - c) / R;
+                q[1] *= f;
+                q[2] *= f;
+              }
+            return Point<3>(to_axis(q) + o);
+          };
         }
       // gmsh
       const std::string path =
@@ -139,8 +174,9 @@ namespace shard::mesh
         prm.enter_subsection(name);
         prm.add_parameter("shape", b.shape,
                           "Mesh of the body: box (lower/upper corner), rod (square bar along an axis), "
-                          "cylinder (solid circular, along an axis) or gmsh (a .msh file of hexahedra).",
-                          Patterns::Selection("box|rod|cylinder|gmsh"));
+                          "cylinder (solid circular, along an axis), ogive (a cylinder with a tangent ogive nose "
+                          "at its start face: a projectile) or gmsh (a .msh file of hexahedra).",
+                          Patterns::Selection("box|rod|cylinder|ogive|gmsh"));
         prm.add_parameter("lower corner", b.lower_corner, "Box: lower corner 'x, y, z'. Unit: m.");
         prm.add_parameter("upper corner", b.upper_corner,
                           "Box: upper corner 'x, y, z'. Unit: m. Range: each > lower corner.");
@@ -148,7 +184,16 @@ namespace shard::mesh
                           Patterns::Double(0));
         prm.add_parameter("width", b.width, "Rod: side of the square cross-section. Unit: m. Range: > 0.",
                           Patterns::Double(0));
-        prm.add_parameter("radius", b.radius, "Cylinder: radius. Unit: m. Range: > 0.", Patterns::Double(0));
+        prm.add_parameter("radius", b.radius, "Cylinder and ogive: radius. Unit: m. Range: > 0.", Patterns::Double(0));
+        prm.add_parameter("nose caliber radius", b.nose_crh,
+                          "Ogive: radius of the nose arc in calibers (diameters), the CRH; 0.5 is a hemisphere. "
+                          "Unit: 1. Range: >= 0.5.",
+                          Patterns::Double(0));
+        prm.add_parameter("nose tip", b.nose_tip,
+                          "Ogive: radius of the flat tip (meplat) as a fraction of 'radius' (the mesh cannot end "
+                          "in a point; the elements at the tip are this much thinner across). Unit: 1. Range: "
+                          "0 < nose tip < 1.",
+                          Patterns::Double(0));
         prm.add_parameter("axis", b.axis, "Rod and cylinder: axis direction.", Patterns::Selection("x|y|z"));
         prm.add_parameter("origin", b.origin,
                           "Rod and cylinder: centre of the start face 'x, y, z'; gmsh: translation. Unit: m.");
@@ -203,7 +248,22 @@ namespace shard::mesh
                 source.fail(path + "upper corner", b.upper_corner,
                             "must be > lower corner (" + b.lower_corner + ") in every coordinate. Unit: m.");
           }
-        if ((b.shape == "rod" || b.shape == "cylinder") && !(b.length > 0))
+        if (b.shape == "ogive")
+          {
+            if (!(b.radius > 0))
+              source.fail(path + "radius", std::to_string(b.radius), "must be > 0. Unit: m.");
+            if (!(b.nose_crh >= 0.5))
+              source.fail(path + "nose caliber radius", std::to_string(b.nose_crh),
+                          "must be >= 0.5 (a tangent ogive needs an arc radius of at least the radius). Unit: 1.");
+            if (!(b.nose_tip > 0 && b.nose_tip < 1))
+              source.fail(path + "nose tip", std::to_string(b.nose_tip), "must be > 0 and < 1. Unit: 1.");
+            if (b.radius > 0 && b.nose_crh >= 0.5 && b.nose_tip > 0 && b.nose_tip < 1 &&
+                !(ogive_nose_length(b.radius, b.nose_crh, b.nose_tip) < b.length))
+              source.fail(path + "length", std::to_string(b.length),
+                          "must be longer than the nose (" +
+                            std::to_string(ogive_nose_length(b.radius, b.nose_crh, b.nose_tip)) + " m). Unit: m.");
+          }
+        if ((b.shape == "rod" || b.shape == "cylinder" || b.shape == "ogive") && !(b.length > 0))
           source.fail(path + "length", std::to_string(b.length), "must be > 0. Unit: m.");
         if (b.shape == "rod" && !(b.width > 0))
           source.fail(path + "width", std::to_string(b.width), "must be > 0. Unit: m.");

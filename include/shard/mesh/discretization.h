@@ -33,7 +33,7 @@ namespace shard::mesh
   {
     /// Body name (the subsection name).
     std::string name;
-    /// Mesh shape: box, rod, cylinder or gmsh.
+    /// Mesh shape: box, rod, cylinder, ogive or gmsh.
     std::string shape = "box";
     /// Box: lower corner "x, y, z" (m).
     std::string lower_corner = "0, 0, 0";
@@ -45,6 +45,10 @@ namespace shard::mesh
     double width = 0.01;
     /// Cylinder: radius (m).
     double radius = 0.005;
+    /// Ogive: radius of the nose arc in calibers (diameters), the CRH; 0.5 is a hemisphere.
+    double nose_crh = 3.;
+    /// Ogive: radius of the flat tip (meplat) as a fraction of the radius, in (0, 1).
+    double nose_tip = 0.25;
     /// Rod and cylinder: axis direction x, y or z.
     std::string axis = "z";
     /// Rod and cylinder: centre of the start face; gmsh: translation (m).
@@ -62,6 +66,20 @@ namespace shard::mesh
     /// Initial velocity: three muparser expressions of x, y, z separated by ';' (m/s).
     std::string initial_velocity = "0; 0; 0";
   };
+
+  /**
+   * @brief Length of the nose of the `ogive` shape: a tangent ogive of arc radius
+   * 2 @p radius @p crh cut where its radius is @p tip times @p radius (m).
+   */
+  double
+  ogive_nose_length(double radius, double crh, double tip);
+
+  /**
+   * @brief Exact volume of the `ogive` shape of total length @p length: the cut ogive nose
+   * (a solid of revolution, closed form) and the cylindrical shank (m^3).
+   */
+  double
+  ogive_volume(double radius, double length, double crh, double tip);
 
   /**
    * @brief Outward area vector of face @p f of @p cell: half the cross product of the face
