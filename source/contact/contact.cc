@@ -566,8 +566,6 @@ namespace shard::contact
               // near the limit.
               return !(d2 > reach * reach * (1 + 1e-12)) && norm(dx) < reach;
             };
-            // Two slow particles (reach skin/2) are closer than the grid's cell edge,
-            // 2 r_max + skin: one sweep over neighbouring cells finds them, each pair once.
             // The particles of the interaction in a grid of their own (no FE nodes to skip).
             std::vector<unsigned int> members;
             std::vector<Vec3>         members_x;
@@ -579,8 +577,9 @@ namespace shard::contact
                 }
             BinGrid member_grid;
             member_grid.build(members_x, 2. * largest_radius + 2. * base);
-            // (Pairs farther than the largest slow contact distance are dropped on the member
-            // positions, before any look-up by node.)
+            // Two slow particles (reach skin/2) in contact range are closer than the cell edge,
+            // 2 r_max + skin: one sweep over neighbouring cells finds them, each pair once. Pairs
+            // farther than that are dropped on the member positions, before any look-up by node.
             const double widest_slow = (2. * largest_radius + 2. * base) * (2. * largest_radius + 2. * base) * (1 + 1e-12);
             member_grid.for_each_neighbour_pair([&](const unsigned int p, const unsigned int q) {
               const Vec3  &a = members_x[p], &b = members_x[q];
