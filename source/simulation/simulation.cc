@@ -171,6 +171,7 @@ namespace shard
       for (unsigned int i = 0; i < v_.locally_owned_size(); ++i)
         ke += 0.5 * mass_.local_element(i) * v_.local_element(i) * v_.local_element(i);
       initial_energy_ = Utilities::MPI::sum(ke, comm_);
+      initial_max_speed_ = fastest_node(v_).speed;
       balance_.boundary_work += conditions_.apply_initial(d_, mass_, v_);
     }
     stable_dt_ = std::min(hex_.initial_stable_dt(), spg_.initial_stable_dt());
@@ -511,7 +512,49 @@ namespace shard
                             g6(energy_error_) + " exceeds the limit " + g6(integrator_.energy_error_limit()) +
                             " (kinetic " + g6(kinetic) + " J, internal " + g6(internal) + " J, external work " +
                             g6(external) + " J, boundary work " + g6(boundary) + " J, initial kinetic " +
-                            g6(initial_energy_) + " J)");
+                            g6(initial_energy_) + " J); " + fastest_node(v_now_).describe());
+  }
+
+  std::string
+  Simulation::FastestNode::describe() const
+  {
+    std::ostringstream out;
+    out << std::setprecision(6) << "fastest " << (particle ? "particle " : "node ") << id << " of body '" << body
+        << "' at (" << position[0] << ", " << position[1] << ", " << position[2] << ") m: speed " << speed
+        << " m/s (largest initial speed " << initial_speed << " m/s)";
+    return out.str();
+  }
+
+  Simulation::FastestNode
+  Simulation::fastest_node(const mesh::Vector &v) const
+  {
+    // Owned nodes of every body; the fastest of this rank, then of all ranks (every rank gets
+    // the same answer; ties go to the lowest rank).
+    const auto         &X = discretization_.reference_positions();
+    std::array<double, 6> best{{-1, 0, 0, 0, 0, 0}}; // speed, body, global node id, x, y, z
+    for (unsigned int b = 0; b < discretization_.bodies().size(); ++b)
+      for (const unsigned int i : discretization_.body_nodes(b))
+        {
+          const double s = std::sqrt(v.local_element(i) * v.local_element(i) +
+                                     v.local_element(i + 1) * v.local_element(i + 1) +
+                                     v.local_element(i + 2) * v.local_element(i + 2));
+          if (s > best[0])
+            best = {{s, double(b), double(v.get_partitioner()->local_to_global(i) / 3),
+                     X.local_element(i) + d_.local_element(i), X.local_element(i + 1) + d_.local_element(i + 1),
+                     X.local_element(i + 2) + d_.local_element(i + 2)}};
+        }
+    for (const auto &other : Utilities::MPI::all_gather(comm_, best))
+      if (other[0] > best[0] || (other[0] == best[0] && other[2] < best[2]))
+        best = other;
+    FastestNode r;
+    r.speed         = std::max(best[0], 0.);
+    r.initial_speed = initial_max_speed_;
+    const auto b    = static_cast<unsigned int>(best[1]);
+    r.body          = b < discretization_.bodies().size() ? discretization_.bodies()[b].name : "";
+    r.particle      = particles_.is_particle_body(b);
+    r.id            = static_cast<unsigned long long>(best[2]);
+    r.position      = {{best[3], best[4], best[5]}};
+    return r;
   }
 
   namespace

@@ -27,7 +27,9 @@ is the key that sets the output directory (default `K - Output/directory`; for m
 histories (and fragments.csv, when written) to agree to --rel (default 1e-8) relative to max(|a|, |b|, scale), where the scale of
 an energy column is the largest energy term of the run, of a momentum component the largest
 component, of the energy error 1, and of any other column its largest magnitude.
---expect-exit K and --expect-message REGEX check a run that must fail. --expect-file NAME checks
+--expect-exit K and --expect-message REGEX check a run that must fail; when such a run wrote a
+history (an unstable run keeps its output), its .checks, .summary and --expect-file are checked too.
+--expect-file NAME checks
 that the run wrote NAME into its output directory (and turns the fragment plots on).
 A failure prints case, column or check, row and both values, and exits 1.
 """
@@ -304,6 +306,15 @@ def main():
                     failures.append(f"{case}: exit code {p.returncode}, expected {args.expect_exit}")
                 if args.expect_message and not re.search(args.expect_message, text):
                     failures.append(f"{case}: message does not match /{args.expect_message}/")
+                # A run stopped as unstable keeps the output written so far: its history and
+                # summary are checked like a completed run's (.checks, .summary, --expect-file).
+                if os.path.exists(os.path.join(out, "history.csv")):
+                    check_case(args, out, failures)
+                for name in args.expect_file or []:
+                    ok = os.path.isfile(os.path.join(out, name)) and os.path.getsize(os.path.join(out, name)) > 0
+                    print(("ok    " if ok else "FAIL  ") + f"{case}: wrote {name}")
+                    if not ok:
+                        failures.append(f"{case}: {name} was not written")
             else:
                 if p.returncode != 0:
                     print(p.stdout, p.stderr)

@@ -146,6 +146,25 @@ namespace shard
 
     void
     record();
+    /// The fastest node or particle of all ranks, for the energy-limit diagnostic.
+    struct FastestNode
+    {
+      double                speed = 0, initial_speed = 0;
+      std::string           body;
+      bool                  particle = false;
+      /// Global node id (global DOF / 3; for a particle its global particle id).
+      unsigned long long    id = 0;
+      /// Current position X + d (m).
+      std::array<double, 3> position{};
+      /// "fastest node N of body 'b' at (x, y, z) m: speed S m/s (largest initial speed S0 m/s)".
+      std::string
+      describe() const;
+    };
+    /// @note Collective.
+    FastestNode
+    fastest_node(const mesh::Vector &v) const;
+    /// Largest speed of the input velocity field, before the kinematic conditions at t = 0 (m/s).
+    double initial_max_speed_ = 0;
     /**
      * @brief Converts the local elements @p elements of every rank to particles at the end of
      * a step: history transfer, particle set, stencils and ghost set rebuilt, vectors moved to
