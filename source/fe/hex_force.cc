@@ -34,6 +34,17 @@ namespace shard::fe
     prm.add_parameter("hourglass coefficient", hourglass_coefficient_,
                       "Hourglass coefficient q_hg of the chosen form. Unit: 1. Range: 0 to 0.3.",
                       Patterns::Double(0, 0.3));
+    prm.add_parameter("bulk viscosity linear", bulk_q1_,
+                      "Linear coefficient Q1 of the element bulk viscosity q = rho L (Q2 L tr(D)^2 - Q1 c tr(D)) "
+                      "(L = V / A_max), a pressure added in compression (tr(D) < 0) only and not stored, like "
+                      "LS-DYNA's default for solids (0.06, 1.5); it spreads shocks over a few elements and "
+                      "damps the ringing behind them. Its work is part of the internal energy; it lowers the "
+                      "element step to L / (c (sqrt(1 + r^2) + r)), r = Q1 - Q2 L tr(D) / c. Unit: 1. Range: "
+                      "0 to 1.",
+                      Patterns::Double(0, 1));
+    prm.add_parameter("bulk viscosity quadratic", bulk_q2_,
+                      "Quadratic coefficient Q2 of the element bulk viscosity. Unit: 1. Range: 0 to 4.",
+                      Patterns::Double(0, 4));
     prm.leave_subsection();
     return true;
   }
@@ -97,6 +108,7 @@ namespace shard::fe
     volume0_.resize(n);
     element_dt_.assign(n, 1e300);
     stress_.assign(6 * n, 0.);
+    q_.assign(n, 0.);
     hourglass_.assign(12 * n, 0.);
     groups_.assign(material_names.size(), Group());
     for (unsigned int g = 0; g < groups_.size(); ++g)
@@ -163,6 +175,7 @@ namespace shard::fe
             {
               std::copy(&nodes_[8 * e], &nodes_[8 * e] + 8, &nodes_[8 * n]);
               std::copy(&stress_[6 * e], &stress_[6 * e] + 6, &stress_[6 * n]);
+              q_[n] = q_[e];
               std::copy(&hourglass_[12 * e], &hourglass_[12 * e] + 12, &hourglass_[12 * n]);
               std::copy(&grp.state[std::size_t(e - grp.begin) * grp.n_slots],
                         &grp.state[std::size_t(e - grp.begin + 1) * grp.n_slots],
@@ -180,6 +193,7 @@ namespace shard::fe
       }
     nodes_.resize(8 * n);
     stress_.resize(6 * n);
+    q_.resize(n);
     hourglass_.resize(12 * n);
     cell_index_.resize(n);
     body_.resize(n);
@@ -213,6 +227,8 @@ namespace shard::fe
         const double c = groups_[group_of_[e]].material->initial_wave_speed();
         dt             = std::min(dt, volume0_[e] / hex_max_face_area(x) / c);
       }
+    // The linear bulk viscosity lowers the step from the first force evaluation on.
+    dt /= std::sqrt(1 + bulk_q1_ * bulk_q1_) + bulk_q1_;
     return Utilities::MPI::min(dt, discretization_->communicator());
   }
 
@@ -358,14 +374,27 @@ namespace shard::fe
               work *= 0.5 * s.volume_mid;
               if (!std::isfinite(work) || !std::isfinite(c[k]))
                 fail(e, d, step, "non-finite stress (sigma_xx = " + std::to_string(sig[0]) + " Pa)");
+              const double rho = rho0 / J[k];
+              // Bulk viscosity in compression (not stored). Its work is booked like the stress
+              // work, with the mean of the q of both ends of the step.
+              const double trd = dek[0] + dek[1] + dek[2];
+              double       q   = 0;
+              if (trd < 0 && dt > 0)
+                {
+                  const double rate = trd / dt;
+                  q = rho * length[k] * (bulk_q2_ * length[k] * rate * rate - bulk_q1_ * c[k] * rate);
+                }
+              work -= 0.5 * (q_[e] + q) * trd * s.volume_mid;
+              q_[e] = q;
               result.internal_energy += work;
-              element_dt_[e]   = length[k] / c[k];
-              result.stable_dt = std::min(result.stable_dt, element_dt_[e]);
+              // The bulk viscosity lowers the stable step (LS-DYNA's form of the correction).
+              const double qratio = bulk_q1_ - (trd < 0 && dt > 0 ? bulk_q2_ * length[k] * trd / dt / c[k] : 0.);
+              element_dt_[e]      = length[k] / (c[k] * (std::sqrt(1 + qratio * qratio) + qratio));
+              result.stable_dt    = std::min(result.stable_dt, element_dt_[e]);
 
               // Stiffness hourglass control: the hourglass forces rotate with the element and
               // grow with the hourglass displacement increment.
               double      *h     = &hourglass_[12 * e];
-              const double rho     = rho0 / J[k];
               double       hg_work = 0;
               if (viscous_)
                 {
@@ -410,9 +439,9 @@ namespace shard::fe
                 {
                   const double *B  = s.B[a];
                   double       *fa = fp + n[a];
-                  fa[0] -= sig[0] * B[0] + sig[5] * B[1] + sig[4] * B[2];
-                  fa[1] -= sig[5] * B[0] + sig[1] * B[1] + sig[3] * B[2];
-                  fa[2] -= sig[4] * B[0] + sig[3] * B[1] + sig[2] * B[2];
+                  fa[0] -= (sig[0] - q) * B[0] + sig[5] * B[1] + sig[4] * B[2];
+                  fa[1] -= sig[5] * B[0] + (sig[1] - q) * B[1] + sig[3] * B[2];
+                  fa[2] -= sig[4] * B[0] + sig[3] * B[1] + (sig[2] - q) * B[2];
                   for (unsigned int m = 0; m < 4; ++m)
                     {
                       const double g = s.gamma[m][a];

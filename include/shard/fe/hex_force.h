@@ -188,6 +188,8 @@ namespace shard::fe
     std::string hourglass_type_        = "viscous";
     bool        viscous_               = true;
     double      hourglass_coefficient_ = 0.1;
+    double      bulk_q1_               = 0.;
+    double      bulk_q2_               = 0.;
     bool   declared_              = false;
 
     const mesh::Discretization       *discretization_ = nullptr;
@@ -200,6 +202,7 @@ namespace shard::fe
     std::vector<double>         volume0_;
     std::vector<double>         element_dt_; // L_e / c_e of the last force evaluation
     std::vector<double>         stress_;     // 6 per element
+    std::vector<double>         q_;          // bulk viscosity pressure of the last evaluation, per element
     std::vector<double>         hourglass_;  // 12 per element: hourglass force per mode and direction (both forms)
     std::vector<Group>          groups_;
 
