@@ -119,6 +119,16 @@ def case_base(args):
     return os.path.join(args.case, os.path.basename(os.path.normpath(args.case)))
 
 
+def check_files(args, outdir, case, failures):
+    """--expect-file: each NAME must have been written (non-empty) into the output directory."""
+    for name in args.expect_file or []:
+        path = os.path.join(outdir, name)
+        ok = os.path.isfile(path) and os.path.getsize(path) > 0
+        print(("ok    " if ok else "FAIL  ") + f"{case}: wrote {name}")
+        if not ok:
+            failures.append(f"{case}: {name} was not written")
+
+
 def check_case(args, outdir, failures):
     base = case_base(args)
     case = os.path.basename(base)
@@ -318,21 +328,13 @@ def main():
                 # summary are checked like a completed run's (.checks, .summary, --expect-file).
                 if os.path.exists(os.path.join(out, "history.csv")):
                     check_case(args, out, failures)
-                for name in args.expect_file or []:
-                    ok = os.path.isfile(os.path.join(out, name)) and os.path.getsize(os.path.join(out, name)) > 0
-                    print(("ok    " if ok else "FAIL  ") + f"{case}: wrote {name}")
-                    if not ok:
-                        failures.append(f"{case}: {name} was not written")
+                check_files(args, out, case, failures)
             else:
                 if p.returncode != 0:
                     print(p.stdout, p.stderr)
                     raise SystemExit(f"{case}: run failed ({p.returncode}): {' '.join(cmd)}")
                 check_case(args, out, failures)
-                for name in args.expect_file or []:
-                    ok = os.path.isfile(os.path.join(out, name)) and os.path.getsize(os.path.join(out, name)) > 0
-                    print(("ok    " if ok else "FAIL  ") + f"{case}: wrote {name}")
-                    if not ok:
-                        failures.append(f"{case}: {name} was not written")
+                check_files(args, out, case, failures)
     finally:
         if args.keep:
             print("kept", tmp)
