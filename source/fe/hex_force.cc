@@ -242,9 +242,8 @@ namespace shard::fe
              grp.state[static_cast<std::size_t>(e - grp.begin) * grp.n_slots + (it - grp.slot_names.begin())];
   }
 
-  void
-  HexForce::fail(const unsigned int e, const mesh::Vector &d, const unsigned int step,
-                 const std::string &what) const
+  std::string
+  HexForce::describe(const unsigned int e, const mesh::Vector &d) const
   {
     const auto &X = discretization_->reference_positions();
     double      c[3] = {0, 0, 0};
@@ -252,10 +251,16 @@ namespace shard::fe
       for (unsigned int i = 0; i < 3; ++i)
         c[i] += (X.local_element(nodes_[8 * e + a] + i) + d.local_element(nodes_[8 * e + a] + i)) / 8;
     std::ostringstream out;
-    out << "step " << step << ": " << what << " in element " << cell_index_[e] << " of body '"
-        << discretization_->bodies()[body_[e]].name << "' at (" << c[0] << ", " << c[1] << ", " << c[2]
-        << ") m";
-    throw Instability(out.str());
+    out << "element " << cell_index_[e] << " of body '" << discretization_->bodies()[body_[e]].name << "' at ("
+        << c[0] << ", " << c[1] << ", " << c[2] << ") m";
+    return out.str();
+  }
+
+  void
+  HexForce::fail(const unsigned int e, const mesh::Vector &d, const unsigned int step,
+                 const std::string &what) const
+  {
+    throw Instability("step " + std::to_string(step) + ": " + what + " in " + describe(e, d));
   }
 
   ForceResult

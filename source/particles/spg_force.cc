@@ -444,15 +444,21 @@ namespace shard::particles
     return added;
   }
 
-  void
-  SpgForce::fail(const unsigned int i, const unsigned int step, const std::string &what) const
+  std::string
+  SpgForce::describe(const unsigned int i) const
   {
     const auto        &x = particles_->position(i);
     std::ostringstream out;
-    out << "step " << step << ": " << what << " at particle " << particles_->global_id(i) << " of body '"
+    out << "particle " << particles_->global_id(i) << " of body '"
         << discretization_->bodies()[particles_->body(i)].name << "' (reference position " << x[0] << ", " << x[1]
         << ", " << x[2] << ") m";
-    throw fe::Instability(out.str());
+    return out.str();
+  }
+
+  void
+  SpgForce::fail(const unsigned int i, const unsigned int step, const std::string &what) const
+  {
+    throw fe::Instability("step " + std::to_string(step) + ": " + what + " at " + describe(i));
   }
 
   const double *
@@ -568,8 +574,12 @@ namespace shard::particles
               // Spacing for the step: the reference spacing times the smallest principal stretch.
               const double spacing = length_[i] * smallest_stretch(&Fnew_[9 * i]);
               const double qratio  = bulk_q1_ - (trd < 0 && dt > 0 ? bulk_q2_ * spacing * trd / dt / c[k] : 0.);
-              result.stable_dt =
-                std::min(result.stable_dt, spacing / (c[k] * (std::sqrt(1 + qratio * qratio) + qratio)));
+              const double dt_i = spacing / (c[k] * (std::sqrt(1 + qratio * qratio) + qratio));
+              if (dt_i < result.stable_dt)
+                {
+                  result.stable_dt = dt_i;
+                  smallest_step_   = i;
+                }
               volume_times_piola(sig, q, &F_inv[9 * k], particles_->volume(i) * J[k], &VP_[9 * i]);
             }
         }

@@ -174,7 +174,8 @@ namespace shard
       initial_max_speed_ = fastest_node(v_).speed;
       balance_.boundary_work += conditions_.apply_initial(d_, mass_, v_);
     }
-    stable_dt_ = std::min(hex_.initial_stable_dt(), spg_.initial_stable_dt());
+    stable_dt_       = std::min(hex_.initial_stable_dt(), spg_.initial_stable_dt());
+    first_stable_dt_ = Utilities::MPI::min(stable_dt_, comm_);
     f_         = 0;
     f_ext_     = 0;
     conditions_.add_external_forces(0., f_ext_);
@@ -250,6 +251,7 @@ namespace shard
                     particle_steps_ += spg_.n_owned();
                     const auto r = spg_.add_internal_forces(d_, dt_, step_, f_);
                     stable_dt_   = std::min(stable_dt_, r.stable_dt);
+                    particle_dt_ = r.stable_dt;
                     internal_energy_ += r.internal_energy;
                     stabilization_energy_ = r.stabilization_energy;
                   }
@@ -293,6 +295,11 @@ namespace shard
                   throw fe::Instability(all);
                 }
             }
+            // A collapsing step: stopped with the place of the smallest step (collective; every
+            // rank has the same global step).
+            if (integrator_.minimum_step_fraction() > 0 &&
+                stable_dt_ < integrator_.minimum_step_fraction() * first_stable_dt_)
+              throw fe::Instability(collapsed_step_message());
             // 4b. Conversion (rare, collective): after the force of this step, before the
             // kick, so that stresses, history and d all belong to the end of the step.
             if (convert_now)
@@ -513,6 +520,45 @@ namespace shard
                             " (kinetic " + g6(kinetic) + " J, internal " + g6(internal) + " J, external work " +
                             g6(external) + " J, boundary work " + g6(boundary) + " J, initial kinetic " +
                             g6(initial_energy_) + " J); " + fastest_node(v_now_).describe());
+  }
+
+  std::string
+  Simulation::collapsed_step_message() const
+  {
+    // The element or particle of this rank with the smallest own step, then of all ranks.
+    double      best = 1e300;
+    std::string place;
+    for (unsigned int e = 0; e < hex_.n_local_elements(); ++e)
+      if (hex_.element_stable_dt(e) < best)
+        {
+          best  = hex_.element_stable_dt(e);
+          place = hex_.describe(e, d_);
+        }
+    if (spg_.active() && spg_.n_owned() > 0 && particle_dt_ < best)
+      {
+        best  = particle_dt_;
+        place = spg_.describe(spg_.smallest_step_particle());
+      }
+    std::ostringstream local;
+    local << std::setprecision(17) << best << " " << place;
+    double      smallest = 1e300;
+    std::string where;
+    for (const auto &text : Utilities::MPI::all_gather(comm_, local.str()))
+      {
+        std::istringstream in(text);
+        double             dt = 1e300;
+        in >> dt;
+        if (dt < smallest)
+          {
+            smallest = dt;
+            where    = text.substr(text.find(' ') + 1);
+          }
+      }
+    std::ostringstream out;
+    out << std::setprecision(6) << "step " << step_ << ", t = " << t_ << " s: the stable step " << stable_dt_
+        << " s fell below " << integrator_.minimum_step_fraction() << " of the first step " << first_stable_dt_
+        << " s (J - Time integration/minimum step fraction); smallest step " << smallest << " s in " << where;
+    return out.str();
   }
 
   std::string

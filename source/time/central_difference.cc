@@ -30,6 +30,12 @@ namespace shard::time
                       Patterns::Double(0, 0.2));
     prm.add_parameter("max steps", max_steps_, "Stop after this many steps; 0: no limit. Unit: 1.",
                       Patterns::Integer(0));
+    prm.add_parameter("minimum step fraction", min_step_fraction_,
+                      "The run stops as unstable when the stable step falls below this fraction of the first "
+                      "step (like LS-DYNA's DTMIN): a collapsing step is how a lattice that turns unstable "
+                      "without an energy error shows itself. The message names the element or particle with "
+                      "the smallest step. 0: no such stop. Unit: 1. Range: 0 to 1.",
+                      Patterns::Double(0, 1));
     prm.add_parameter("energy error limit", energy_error_limit_,
                       "The run stops as unstable when |energy error| exceeds this fraction of the reference "
                       "energy. Unit: 1. Range: > 0.",

@@ -208,5 +208,11 @@ namespace shard::fe
 
     [[noreturn]] void
     fail(unsigned int e, const mesh::Vector &d, unsigned int step, const std::string &what) const;
+
+  public:
+    /// "element <cell> of body '<name>' at (x, y, z) m" for local element @p e, the centroid in the
+    /// current configuration X + @p d (ghost values of @p d needed).
+    std::string
+    describe(unsigned int e, const mesh::Vector &d) const;
   };
 } // namespace shard::fe

@@ -115,6 +115,17 @@ namespace shard::particles
     double
     current_stable_dt() const;
 
+    /// Owned particle with the smallest stable step at the last force evaluation.
+    unsigned int
+    smallest_step_particle() const
+    {
+      return smallest_step_;
+    }
+
+    /// "particle <global id> of body '<name>' (reference position x, y, z) m" for owned particle @p i.
+    std::string
+    describe(unsigned int i) const;
+
     /// Smallest L_I / c over the owned particles at t = 0 (collective).
     double
     initial_stable_dt() const;
@@ -241,6 +252,7 @@ namespace shard::particles
       std::vector<double>        state;
     };
 
+    unsigned int       smallest_step_      = 0;
     double             bulk_q1_            = 0.06;
     double             bulk_q2_            = 1.5;
     std::string        smoothing_text_     = "two-level";

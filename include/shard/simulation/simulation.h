@@ -165,6 +165,13 @@ namespace shard
     fastest_node(const mesh::Vector &v) const;
     /// Largest speed of the input velocity field, before the kinematic conditions at t = 0 (m/s).
     double initial_max_speed_ = 0;
+    /// Global stable step before the first step, and the particles' own step of the last force
+    /// evaluation (s).
+    double first_stable_dt_ = 0, particle_dt_ = 1e300;
+    /// The diagnostic of a collapsed step: the step, the limit and the element or particle with
+    /// the smallest step on any rank. @note Collective.
+    std::string
+    collapsed_step_message() const;
     /**
      * @brief Converts the local elements @p elements of every rank to particles at the end of
      * a step: history transfer, particle set, stencils and ghost set rebuilt, vectors moved to

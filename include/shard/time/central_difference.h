@@ -66,6 +66,13 @@ namespace shard::time
       return energy_error_limit_;
     }
 
+    /// Fraction of the first stable step below which the run stops as unstable (0: never).
+    double
+    minimum_step_fraction() const
+    {
+      return min_step_fraction_;
+    }
+
     /// Safety factor applied to the stable step.
     double
     safety_factor() const
@@ -111,6 +118,7 @@ namespace shard::time
     double       held_dt_            = 0.;
     unsigned int max_steps_          = 0;
     double       energy_error_limit_ = 0.1;
+    double       min_step_fraction_  = 0.01;
     bool         declared_           = false;
     mesh::Vector acceleration_, v_old_;
   };
