@@ -525,33 +525,47 @@ namespace shard
   std::string
   Simulation::collapsed_step_message() const
   {
-    // The element or particle of this rank with the smallest own step, then of all ranks.
-    double      best = 1e300;
-    std::string place;
+    // The element or particle of this rank with the smallest own step, then of all ranks; ties
+    // go to elements before particles, then to the smaller cell index or global particle id, so
+    // the answer does not depend on the partition.
+    double             best = 1e300;
+    unsigned long long kind = 2, id = 0;
+    std::string        place;
     for (unsigned int e = 0; e < hex_.n_local_elements(); ++e)
-      if (hex_.element_stable_dt(e) < best)
+      if (hex_.element_stable_dt(e) < best || (hex_.element_stable_dt(e) == best && hex_.cell_index(e) < id))
         {
           best  = hex_.element_stable_dt(e);
+          kind  = 0;
+          id    = hex_.cell_index(e);
           place = hex_.describe(e, d_);
         }
     if (spg_.active() && spg_.n_owned() > 0 && particle_dt_ < best)
       {
-        best  = particle_dt_;
-        place = spg_.describe(spg_.smallest_step_particle());
+        const unsigned int i = spg_.smallest_step_particle();
+        best                 = particle_dt_;
+        kind                 = 1;
+        id                   = particles_.global_id(i);
+        place                = spg_.describe(i);
       }
     std::ostringstream local;
-    local << std::setprecision(17) << best << " " << place;
-    double      smallest = 1e300;
-    std::string where;
+    local << std::setprecision(17) << best << " " << kind << " " << id << " " << place;
+    double             smallest = 1e300;
+    unsigned long long best_kind = 3, best_id = 0;
+    std::string        where;
     for (const auto &text : Utilities::MPI::all_gather(comm_, local.str()))
       {
         std::istringstream in(text);
         double             dt = 1e300;
-        in >> dt;
-        if (dt < smallest)
+        unsigned long long k = 2, i = 0;
+        in >> dt >> k >> i;
+        if (dt < smallest || (dt == smallest && (k < best_kind || (k == best_kind && i < best_id))))
           {
-            smallest = dt;
-            where    = text.substr(text.find(' ') + 1);
+            smallest  = dt;
+            best_kind = k;
+            best_id   = i;
+            std::string rest;
+            std::getline(in >> std::ws, rest);
+            where = rest;
           }
       }
     std::ostringstream out;
