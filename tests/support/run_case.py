@@ -187,6 +187,16 @@ def check_case(args, outdir, failures):
                 late = max(abs(y) for t, y in zip(ts, ys) if t >= c["from"])
                 early = max(abs(y) for t, y in zip(ts, ys) if t <= c["to"])
                 value = late / early
+            elif kind == "impulse_balance":
+                # Momentum balance: largest |y(t) - y(0) - integral of the force columns dt| over
+                # the rows (trapezoidal rule on the history rows), e.g. the momentum of a body
+                # against the applied load and the support reactions.
+                fs = [sum(r) for r in zip(*[column(header, data, n) for n in c["forces"]])]
+                impulse, value = 0.0, 0.0
+                for k in range(1, len(ts)):
+                    impulse += 0.5 * (ts[k] - ts[k - 1]) * (fs[k] + fs[k - 1]) * c.get("scale", 1.0)
+                    if ts[k] >= c.get("from", ts[0]):
+                        value = max(value, abs(ys[k] - ys[0] - impulse))
             else:
                 raise SystemExit(f"unknown check type {kind}")
             check_value(failures, case, f"{c['name']} ({c.get('source', '')})", value, c["expected"],
