@@ -890,17 +890,15 @@ namespace shard::contact
                     plane_stamp_[g] = step;
                     pl              = mean_plane(xs);
                     double r2       = 0;
-                    for (unsigned int c = 0; c < 3; ++c)
-                      pl.mid[c] = 0.25 * (xs[0][c] + xs[1][c] + xs[2][c] + xs[3][c]);
                     for (const auto &xv : xs)
-                      r2 = std::max(r2, (xv[0] - pl.mid[0]) * (xv[0] - pl.mid[0]) +
-                                          (xv[1] - pl.mid[1]) * (xv[1] - pl.mid[1]) +
-                                          (xv[2] - pl.mid[2]) * (xv[2] - pl.mid[2]));
+                      r2 = std::max(r2, (xv[0] - pl.centre[0]) * (xv[0] - pl.centre[0]) +
+                                          (xv[1] - pl.centre[1]) * (xv[1] - pl.centre[1]) +
+                                          (xv[2] - pl.centre[2]) * (xv[2] - pl.centre[2]));
                     pl.sphere2 = 1.0201 * r2 + depth * depth;
                   }
                 const Vec3 p = position(i);
                 {
-                  const double d0 = p[0] - pl.mid[0], d1 = p[1] - pl.mid[1], d2 = p[2] - pl.mid[2];
+                  const double d0 = p[0] - pl.centre[0], d1 = p[1] - pl.centre[1], d2 = p[2] - pl.centre[2];
                   if (d0 * d0 + d1 * d1 + d2 * d2 > pl.sphere2)
                     continue;
                 }

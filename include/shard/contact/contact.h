@@ -241,11 +241,10 @@ namespace shard::contact
       Vec3   centre{}, normal{};
       double half_width = 0;
       bool   usable     = false;
-      /// The mean of the four nodes and the square of a radius around it beyond which no
-      /// point hits the segment within the depth: (1.01 R)^2 + depth^2, R the largest node
-      /// distance (a hit projects into a triangle with the mean as a corner, and the gap is
-      /// normal to it).
-      Vec3   mid{};
+      /// Square of the radius around the centre (the mean of the four nodes, always set)
+      /// beyond which no point hits the segment within the depth: (1.01 R)^2 + depth^2, R the
+      /// largest node distance (a hit projects into a triangle with the centre as a corner, and
+      /// the gap is normal to it).
       double sphere2 = 0;
     };
     std::vector<Plane>        planes_;
