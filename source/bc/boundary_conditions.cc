@@ -255,7 +255,6 @@ namespace shard::bc
     if (Utilities::MPI::sum(n_faces, comm) == 0)
       throw base::InputError(path + "boundary id = " + std::to_string(c.boundary_id) + ": body '" + c.body +
                              "' has no boundary faces with this id.");
-    a.z_range              = {z_lo, z_hi};
     const Burst burst      = parse_burst(c.burst);
     const double lo = kb_z_min(burst), hi = kb_z_max(burst);
     if (z_lo < lo * (1 - 1e-12) || z_hi > hi * (1 + 1e-12))
@@ -269,15 +268,6 @@ namespace shard::bc
       }
     for (unsigned int k = 0; k < points.size(); ++k)
       a.blast_faces[k].load = charge.at(points[k].first, points[k].second);
-  }
-
-  std::pair<double, double>
-  BoundaryConditions::scaled_distance_range(const std::string &name) const
-  {
-    for (const auto &a : active_)
-      if (a.p->name == name)
-        return a.z_range;
-    return {0., 0.};
   }
 
   std::array<double, 3>
@@ -296,42 +286,10 @@ namespace shard::bc
       add_forces(a, t, f);
   }
 
-  std::array<double, 3>
-  BoundaryConditions::applied_force(const std::string &name, const double t) const
-  {
-    std::array<double, 3> sum{{0, 0, 0}};
-    for (const auto &a : active_)
-      if (a.p->name == name)
-        {
-          if (a.p->type == "blast")
-            for (const auto &face : a.blast_faces)
-              {
-                const double p = face.load.pressure(t);
-                for (unsigned int i = 0; i < 3; ++i)
-                  sum[i] -= p * face.area[i] * 0.25 * face.nodes.size();
-              }
-          else if (a.p->type == "traction")
-            {
-              const auto    &X = discretization_->reference_positions();
-              Vector<double> value(3);
-              a.function->set_time(t);
-              for (const auto &[node, area] : a.areas)
-                {
-                  a.function->vector_value(Point<3>(X.local_element(node), X.local_element(node + 1),
-                                                    X.local_element(node + 2)),
-                                           value);
-                  for (unsigned int i = 0; i < 3; ++i)
-                    sum[i] += value[i] * area;
-                }
-            }
-        }
-    return sum;
-  }
-
+  template <typename Visit>
   void
-  BoundaryConditions::add_forces(const Active &a, const double t, mesh::Vector &f) const
+  BoundaryConditions::for_each_nodal_force(const Active &a, const double t, Visit &&visit) const
   {
-    const auto &X = discretization_->reference_positions();
     if (a.p->type == "blast")
       // Reference-face pressure, one point per face: -p(x_f, t) A_f / 4 at each node.
       for (const auto &face : a.blast_faces)
@@ -341,10 +299,11 @@ namespace shard::bc
             continue;
           for (const unsigned int node : face.nodes)
             for (unsigned int i = 0; i < 3; ++i)
-              f.local_element(node + i) -= 0.25 * p * face.area[i];
+              visit(node, i, -(0.25 * p * face.area[i]));
         }
     else if (a.p->type == "traction")
       {
+        const auto &X = discretization_->reference_positions();
         a.function->set_time(t);
         Vector<double> value(3);
         if (a.time_only)
@@ -356,9 +315,27 @@ namespace shard::bc
                                                 X.local_element(node + 2)),
                                        value);
             for (unsigned int i = 0; i < 3; ++i)
-              f.local_element(node + i) += value[i] * area;
+              visit(node, i, value[i] * area);
           }
       }
+  }
+
+  std::array<double, 3>
+  BoundaryConditions::applied_force(const std::string &name, const double t) const
+  {
+    std::array<double, 3> sum{{0, 0, 0}};
+    for (const auto &a : active_)
+      if (a.p->name == name)
+        for_each_nodal_force(a, t, [&](unsigned int, const unsigned int i, const double value) { sum[i] += value; });
+    return sum;
+  }
+
+  void
+  BoundaryConditions::add_forces(const Active &a, const double t, mesh::Vector &f) const
+  {
+    for_each_nodal_force(a, t, [&](const unsigned int node, const unsigned int i, const double value) {
+      f.local_element(node + i) += value;
+    });
   }
 
   std::pair<double, double>

@@ -173,13 +173,6 @@ namespace shard::bc
     BlastPoint
     at(const std::array<double, 3> &x, const std::array<double, 3> &n) const;
 
-    /// Overpressure at @p x on a face with outward unit normal @p n at time @p t (Pa).
-    double
-    pressure(const std::array<double, 3> &x, const std::array<double, 3> &n, double t) const
-    {
-      return at(x, n).pressure(t);
-    }
-
     /// TNT-equivalent mass (kg).
     double
     mass() const
@@ -187,12 +180,6 @@ namespace shard::bc
       return w_;
     }
 
-    /// Burst type.
-    Burst
-    burst() const
-    {
-      return burst_;
-    }
 
   private:
     double                w_;

@@ -120,13 +120,6 @@ namespace shard::bc
     applied_force(const std::string &name, double t) const;
 
     /**
-     * @brief Smallest and largest scaled distance Z (m/kg^(1/3)) of the loaded faces of blast
-     * condition @p name over all ranks, as found by prepare() (both 0 for other types or no faces).
-     */
-    std::pair<double, double>
-    scaled_distance_range(const std::string &name) const;
-
-    /**
      * @brief Applies the kinematic conditions to the velocity of the next half step.
      *
      * @param[in] t_half time at the middle of the next step (velocity functions are evaluated there)
@@ -177,11 +170,17 @@ namespace shard::bc
         std::vector<unsigned int> nodes; // first local DOF of each owned node of the face
       };
       std::vector<BlastFace>    blast_faces;
-      std::pair<double, double> z_range{0., 0.};
     };
 
     void
     add_forces(const Active &a, double t, mesh::Vector &f) const;
+
+    /// Calls visit(node, component, force) for each nodal force of traction or blast condition
+    /// @p a at time @p t (node: first local DOF of an owned node; N). One loop serves the
+    /// assembly and the applied-force sum.
+    template <typename Visit>
+    void
+    for_each_nodal_force(const Active &a, double t, Visit &&visit) const;
 
     void
     prepare_blast(const mesh::Discretization &discretization, unsigned int body, const base::PrmSource &source,
