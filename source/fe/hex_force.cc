@@ -383,19 +383,13 @@ namespace shard::fe
               // Bulk viscosity in compression (not stored). Its work is booked like the stress
               // work, with the mean of the q of both ends of the step.
               const double trd = dek[0] + dek[1] + dek[2];
-              double       q   = 0;
-              if (trd < 0 && dt > 0)
-                {
-                  const double rate = trd / dt;
-                  q = rho * length[k] * (bulk_q2_ * length[k] * rate * rate - bulk_q1_ * c[k] * rate);
-                }
+              const double q   = bulk_viscosity(rho, length[k], c[k], trd, dt, bulk_q1_, bulk_q2_);
               work -= 0.5 * (q_[e] + q) * trd * s.volume_mid;
               q_[e] = q;
               result.internal_energy += work;
               // The bulk viscosity lowers the stable step (LS-DYNA's form of the correction).
-              const double qratio = bulk_q1_ - (trd < 0 && dt > 0 ? bulk_q2_ * length[k] * trd / dt / c[k] : 0.);
-              element_dt_[e]      = length[k] / (c[k] * (std::sqrt(1 + qratio * qratio) + qratio));
-              result.stable_dt    = std::min(result.stable_dt, element_dt_[e]);
+              element_dt_[e]   = bulk_viscosity_step(length[k], c[k], trd, dt, bulk_q1_, bulk_q2_);
+              result.stable_dt = std::min(result.stable_dt, element_dt_[e]);
 
               // Stiffness hourglass control: the hourglass forces rotate with the element and
               // grow with the hourglass displacement increment.

@@ -561,20 +561,14 @@ namespace shard::particles
               // step (the central difference applies each force half to the step before and half to
               // the step after it).
               const double trd = e[0] + e[1] + e[2];
-              double       q   = 0;
-              if (trd < 0 && dt > 0)
-                {
-                  const double rate = trd / dt;
-                  q = density_[i] / J[k] * length[k] * (bulk_q2_ * length[k] * rate * rate - bulk_q1_ * c[k] * rate);
-                }
+              const double q   = fe::bulk_viscosity(density_[i] / J[k], length[k], c[k], trd, dt, bulk_q1_, bulk_q2_);
               work -= 0.5 * (q_[i] + q) * trd * volume_mid[k];
               q_[i] = q;
               result.internal_energy += work;
               // The bulk viscosity lowers the stable step (LS-DYNA's form of the correction).
               // Spacing for the step: the reference spacing times the smallest principal stretch.
               const double spacing = length_[i] * smallest_stretch(&Fnew_[9 * i]);
-              const double qratio  = bulk_q1_ - (trd < 0 && dt > 0 ? bulk_q2_ * spacing * trd / dt / c[k] : 0.);
-              const double dt_i = spacing / (c[k] * (std::sqrt(1 + qratio * qratio) + qratio));
+              const double dt_i    = fe::bulk_viscosity_step(spacing, c[k], trd, dt, bulk_q1_, bulk_q2_);
               if (dt_i < result.stable_dt)
                 {
                   result.stable_dt = dt_i;

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 
 namespace shard::fe
 {
@@ -68,4 +69,32 @@ namespace shard::fe
   /// Principal stretches of F (row-major): square roots of the eigenvalues of F^T F, ascending.
   std::array<double, 3>
   principal_stretches(const double *F);
+
+  /**
+   * @brief Bulk viscosity pressure q = rho L (Q2 L r^2 - Q1 c r), r = tr(de) / dt, in compression
+   * (tr(de) < 0) and 0 otherwise (LS-DYNA's form; elements and particles).
+   * @param rho current density (kg/m^3), @param length L (m), @param c wave speed (m/s)
+   * @param trace_de tr of the strain increment of the step, @param dt step (s)
+   */
+  inline double
+  bulk_viscosity(const double rho, const double length, const double c, const double trace_de, const double dt,
+                 const double q1, const double q2)
+  {
+    if (!(trace_de < 0 && dt > 0))
+      return 0.;
+    const double rate = trace_de / dt;
+    return rho * length * (q2 * length * rate * rate - q1 * c * rate);
+  }
+
+  /**
+   * @brief Stable step L / (c (sqrt(1 + r^2) + r)) with the bulk viscosity, r = Q1 - Q2 L tr(de) / (dt c)
+   * in compression and Q1 otherwise (LS-DYNA's correction of L / c).
+   */
+  inline double
+  bulk_viscosity_step(const double length, const double c, const double trace_de, const double dt, const double q1,
+                      const double q2)
+  {
+    const double r = q1 - (trace_de < 0 && dt > 0 ? q2 * length * trace_de / dt / c : 0.);
+    return length / (c * (std::sqrt(1 + r * r) + r));
+  }
 } // namespace shard::fe
