@@ -34,49 +34,20 @@ spalled mass > 0; 'incipient spall' without it), else 'front crater only' if the
 else 'no debris' (bonds may still have broken: see broken_bonds in summary.json).
 """
 import argparse
-import csv
-import glob
 import json
 import math
 import os
-import re
 import sys
 
-
-def last_fragments(path):
-    with open(path) as f:
-        rows = list(csv.DictReader(f))
-    if not rows:
-        raise SystemExit(f"{path}: no fragments")
-    t = max(float(r["time"]) for r in rows)
-    return t, [r for r in rows if float(r["time"]) == t]
-
-
-def read_arrays(vtu):
-    """The ascii DataArrays of one particle piece: Points and the named point data."""
-    text = open(vtu).read()
-    out = {}
-    for m in re.finditer(r'<DataArray([^>]*)>(.*?)</DataArray>', text, re.S):
-        attrs, body = m.group(1), m.group(2)
-        name = re.search(r'Name="([^"]*)"', attrs)
-        name = name.group(1) if name else "Points"
-        if name in ("connectivity", "offsets", "types", "TIME"):
-            continue
-        ncomp = re.search(r'NumberOfComponents="(\d+)"', attrs)
-        ncomp = int(ncomp.group(1)) if ncomp else 1
-        vals = [float(x) for x in body.split()]
-        out[name] = [vals[i:i + ncomp] for i in range(0, len(vals), ncomp)] if ncomp > 1 else vals
-    return out
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from shard_output import last_fragments, last_pieces, read_vtu  # noqa: E402
 
 
 def last_particles(out_dir):
-    records = sorted(set(re.sub(r"\.\d+\.vtu$", "", os.path.basename(p))
-                         for p in glob.glob(os.path.join(out_dir, "particles_*.vtu"))))
-    if not records:
-        return []
+    """(x, d, v, volume) of every particle of the last particle output, all ranks."""
     particles = []
-    for piece in sorted(glob.glob(os.path.join(out_dir, records[-1] + ".*.vtu"))):
-        a = read_arrays(piece)
+    for piece in last_pieces(out_dir, "particles"):
+        a = {k: [v[i:i + c] for i in range(0, len(v), c)] if c > 1 else v for k, (v, c) in read_vtu(piece).items()}
         for x, d, v, vol in zip(a["Points"], a["displacement"], a["velocity"], a["volume"]):
             particles.append((x, d, v, vol))
     return particles
@@ -136,7 +107,10 @@ def main():
     h, s = args.front - args.rear, args.spacing
     mid = 0.5 * (args.rear + args.front)
 
-    t, frags = last_fragments(os.path.join(args.out_dir, "fragments.csv"))
+    path = os.path.join(args.out_dir, "fragments.csv")
+    t, frags = last_fragments(path)
+    if not frags:
+        raise SystemExit(f"{path}: no fragments")
     total = sum(float(r["mass"]) for r in frags)
     slab = max(frags, key=lambda r: float(r["mass"]))
     debris = [r for r in frags if r is not slab]

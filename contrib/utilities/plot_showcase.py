@@ -11,14 +11,9 @@ v_projectile), converted elements and broken bonds against time.
 Reads solution_NNNN.R.vtu (deal.II binary, zlib) and particles_NNNN.R.vtu (ASCII) of the last
 output of every rank, and history.csv. Needs python3-numpy and python3-matplotlib.
 """
-import base64
 import csv
-import glob
 import os
-import re
-import struct
 import sys
-import zlib
 
 import numpy as np
 import matplotlib
@@ -27,52 +22,14 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.collections import PolyCollection  # noqa: E402
 
-DTYPES = {"Float32": np.float32, "Float64": np.float64, "Int32": np.int32, "UInt8": np.uint8, "Int64": np.int64}
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from shard_output import last_fragments, last_pieces, read_vtu  # noqa: E402
 
 
-def decode(text, dtype):
-    """A deal.II binary DataArray: base64 header (nblocks, block size, last size, compressed sizes)
-    followed by the base64 zlib blocks."""
-    text = text.strip()
-    n = struct.unpack("<I", base64.b64decode(text[:8])[:4])[0]
-    header_chars = 4 * ((4 * (3 + n) + 2) // 3)
-    header = struct.unpack(f"<{3 + n}I", base64.b64decode(text[:header_chars]))
-    data = base64.b64decode(text[header_chars:])
-    raw, pos = b"", 0
-    for size in header[3:]:
-        raw += zlib.decompress(data[pos:pos + size])
-        pos += size
-    return np.frombuffer(raw, dtype=dtype)
-
-
-def read_vtu(path):
-    """Points and named point arrays of one .vtu piece (ASCII or deal.II binary)."""
-    with open(path) as f:
-        xml = f.read()
-    arrays = {}
-    for m in re.finditer(r'<DataArray([^>]*)>(.*?)</DataArray>', xml, re.S):
-        attrs, body = m.group(1), m.group(2)
-        name = re.search(r'Name="([^"]*)"', attrs)
-        name = name.group(1) if name else "Points"
-        dtype = DTYPES[re.search(r'type="([^"]*)"', attrs).group(1)]
-        if 'format="binary"' in attrs:
-            values = decode(body, dtype)
-        else:
-            values = np.array(body.split(), dtype=float)
-        ncomp = re.search(r'NumberOfComponents="(\d+)"', attrs)
-        if ncomp and int(ncomp.group(1)) > 1:
-            values = values.reshape(-1, int(ncomp.group(1)))
-        arrays[name] = values
-    return arrays
-
-
-def last_pieces(out, stem):
-    files = glob.glob(os.path.join(out, f"{stem}_[0-9][0-9][0-9][0-9].*.vtu"))
-    if not files:
-        return []
-    last = max(int(re.search(rf"{stem}_(\d+)\.", os.path.basename(f)).group(1)) for f in files)
-    return sorted(f for f in files if os.path.basename(f).startswith(f"{stem}_{last:04d}."))
-
+def arrays(path):
+    """read_vtu() as numpy arrays of shape (n, components)."""
+    return {k: np.asarray(v, dtype=float).reshape(-1, c) if c > 1 else np.asarray(v, dtype=float)
+            for k, (v, c) in read_vtu(path).items()}
 
 def hull(p):
     """Convex hull of 2-D points (monotone chain), counter-clockwise."""
@@ -100,7 +57,7 @@ def main():
     spacing = None
     cells_drawn = 0
     for f in last_pieces(out, "solution"):
-        d = read_vtu(f)
+        d = arrays(f)
         x = d["Points"].reshape(-1, 8, 3)
         material = d["material"].reshape(-1, 8)[:, 0]
         converted = d["converted"].reshape(-1, 8)[:, 0]
@@ -112,7 +69,7 @@ def main():
         a.add_collection(PolyCollection(polys, facecolors=colours, edgecolors="#606060", linewidths=0.2))
         cells_drawn += len(polys)
     for f in last_pieces(out, "particles"):
-        d = read_vtu(f)
+        d = arrays(f)
         x = d["Points"].reshape(-1, 3)
         volume = d.get("volume", np.ones(len(x)))
         h = np.cbrt(np.median(volume))
@@ -123,11 +80,9 @@ def main():
     free = []
     frag_path = os.path.join(out, "fragments.csv")
     if os.path.exists(frag_path):
-        with open(frag_path) as f:
-            rows = list(csv.DictReader(f))
+        last, rows = last_fragments(frag_path)
         if rows:
-            last = max(float(r["time"]) for r in rows)
-            free = [r for r in rows if float(r["time"]) == last and int(r["nodes"]) == 1]
+            free = [r for r in rows if int(r["nodes"]) == 1]
             half = 0.5 * (spacing if spacing else 1e9)
             fx = np.array([[float(r["x"]), float(r["y"]), float(r["z"])] for r in free]).reshape(-1, 3)
             sel = np.abs(fx[:, 1]) < half
