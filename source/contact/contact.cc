@@ -341,7 +341,8 @@ namespace shard::contact
               k_segment = std::max(k_segment, s.penalty * g.stiffness);
         // A segment node carries the reactions of the slaves around it: up to about four
         // springs of the segment stiffness at once.
-        if (s.type == Type::node_to_surface)
+        // (Not for a rigid target: its nodes move with the mass of the whole body.)
+        if (s.type == Type::node_to_surface && !materials.get(bodies[s.target_body].material).rigid())
           for (const auto &g : segments_)
             if (g.body == s.target_body)
               for (const unsigned int a : g.node)

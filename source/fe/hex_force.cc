@@ -224,8 +224,10 @@ namespace shard::fe
         for (unsigned int a = 0; a < 8; ++a)
           for (unsigned int i = 0; i < 3; ++i)
             x[a][i] = X.local_element(nodes_[8 * e + a] + i);
-        const double c = groups_[group_of_[e]].material->initial_wave_speed();
-        dt             = std::min(dt, volume0_[e] / hex_max_face_area(x) / c);
+        const auto  *m = groups_[group_of_[e]].material;
+        if (m->rigid())
+          continue; // no internal force, no step limit
+        dt = std::min(dt, volume0_[e] / hex_max_face_area(x) / m->initial_wave_speed());
       }
     // The linear bulk viscosity lowers the step from the first force evaluation on.
     dt /= std::sqrt(1 + bulk_q1_ * bulk_q1_) + bulk_q1_;
@@ -288,6 +290,9 @@ namespace shard::fe
     for (auto &grp : groups_)
       for (unsigned int b0 = grp.begin; b0 < grp.end; b0 += batch_size)
         {
+          // Rigid bodies: no stress, no step limit (time::RigidBodies moves their nodes).
+          if (grp.material->rigid())
+            break;
           const unsigned int nb = std::min(batch_size, grp.end - b0);
           // Pass 1: kinematics, objective rotation of the stored stress.
           for (unsigned int k = 0; k < nb; ++k)

@@ -158,4 +158,22 @@ namespace shard::materials
     if (batch.wave_speed != nullptr)
       std::fill(batch.wave_speed, batch.wave_speed + n, elasticity_.wave_speed());
   }
+
+  // --------------------------------------------------------------------------------------
+  // Rigid
+  // --------------------------------------------------------------------------------------
+
+  std::string
+  Rigid::model_name() const
+  {
+    return "rigid";
+  }
+
+  void
+  Rigid::update(const PointBatch &batch) const
+  {
+    std::fill(batch.stress, batch.stress + 6 * batch.n, 0.);
+    if (batch.wave_speed)
+      std::fill(batch.wave_speed, batch.wave_speed + batch.n, initial_wave_speed());
+  }
 } // namespace shard::materials

@@ -32,6 +32,7 @@ namespace shard::materials
       {"elastic", &make<Elastic>},
       {"von mises", &make<VonMises>},
       {"kcc", &make<KccConcrete>},
+      {"rigid", &make<Rigid>},
     };
   } // namespace
 

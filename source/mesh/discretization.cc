@@ -8,6 +8,8 @@
 #include <deal.II/grid/grid_in.h>
 #include <deal.II/grid/tria.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <fstream>
 #include <regex>
@@ -33,6 +35,39 @@ namespace shard::mesh
     const double nose = (rho * rho + c * c) * s - s * s * s / 3. -
                         c * (s * std::sqrt(rho * rho - s * s) + rho * rho * std::asin(s / rho));
     return M_PI * (nose + radius * radius * (length - s));
+  }
+
+  std::vector<double>
+  graded_cell_sizes(const double lower, const double upper, const double fine_lower, const double fine_upper,
+                    const double h, const double ratio)
+  {
+    const double a = std::max(lower, std::min(fine_lower, upper)), b = std::min(upper, std::max(fine_upper, a));
+    const unsigned int n_core =
+      b - a > 1e-12 * h ? std::max(1u, static_cast<unsigned int>(std::ceil((b - a) / h - 1e-6))) : 0;
+    const double h0 = n_core > 0 ? (b - a) / n_core : h;
+    // Cells growing from the core's size h0 over a side of length L: the fewest n with
+    // h0 (r + ... + r^n) >= L, then scaled by L / sum, so no cell is larger than h0 r^k.
+    const auto side = [h0, ratio](const double L) {
+      std::vector<double> cells;
+      if (!(L > 1e-12 * h0))
+        return cells;
+      double sum = 0, size = h0;
+      while (sum < L * (1 - 1e-9))
+        {
+          size *= ratio;
+          cells.push_back(size);
+          sum += size;
+        }
+      for (auto &c : cells)
+        c *= L / sum;
+      return cells;
+    };
+    std::vector<double> sizes = side(a - lower);
+    std::reverse(sizes.begin(), sizes.end());
+    sizes.insert(sizes.end(), n_core, h0);
+    const auto right = side(upper - b);
+    sizes.insert(sizes.end(), right.begin(), right.end());
+    return sizes;
   }
 
   namespace
@@ -73,13 +108,28 @@ namespace shard::mesh
               p1 = Point<3>(0, -b.width / 2, -b.width / 2);
               p2 = Point<3>(b.length, b.width / 2, b.width / 2);
             }
-          std::vector<unsigned int> reps(3);
-          for (unsigned int d = 0; d < 3; ++d)
-            reps[d] = b.element_size > 0 ?
-                        std::max(1u, static_cast<unsigned int>(
-                                       std::ceil((p2[d] - p1[d]) / b.element_size - 1e-6))) :
-                        (1u << b.refinement);
-          GridGenerator::subdivided_hyper_rectangle(tria, reps, p1, p2, true);
+          if (b.shape == "box" && b.grading > 1 && b.element_size > 0)
+            {
+              // Graded box: uniform cells in the fine core, growing outside it.
+              const auto fl = b.fine_lower_corner.empty() ? std::array<double, 3>{p1[0], p1[1], p1[2]} :
+                                                            base::parse_point(b.fine_lower_corner);
+              const auto fu = b.fine_upper_corner.empty() ? std::array<double, 3>{p2[0], p2[1], p2[2]} :
+                                                            base::parse_point(b.fine_upper_corner);
+              std::vector<std::vector<double>> steps(3);
+              for (unsigned int d = 0; d < 3; ++d)
+                steps[d] = graded_cell_sizes(p1[d], p2[d], fl[d], fu[d], b.element_size, b.grading);
+              GridGenerator::subdivided_hyper_rectangle(tria, steps, p1, p2, true);
+            }
+          else
+            {
+              std::vector<unsigned int> reps(3);
+              for (unsigned int d = 0; d < 3; ++d)
+                reps[d] = b.element_size > 0 ?
+                            std::max(1u, static_cast<unsigned int>(
+                                           std::ceil((p2[d] - p1[d]) / b.element_size - 1e-6))) :
+                            (1u << b.refinement);
+              GridGenerator::subdivided_hyper_rectangle(tria, reps, p1, p2, true);
+            }
           if (b.shape == "box")
             return [](const Point<3> &p) { return p; };
           return [=](const Point<3> &p) { return Point<3>(to_axis(p) + o); };
@@ -180,6 +230,18 @@ namespace shard::mesh
         prm.add_parameter("lower corner", b.lower_corner, "Box: lower corner 'x, y, z'. Unit: m.");
         prm.add_parameter("upper corner", b.upper_corner,
                           "Box: upper corner 'x, y, z'. Unit: m. Range: each > lower corner.");
+        prm.add_parameter("grading", b.grading,
+                          "Box: growth ratio of the element size per cell outside the fine core ('fine lower "
+                          "corner', 'fine upper corner'); the core has cells of 'element size', the cells outside "
+                          "grow by this factor towards the faces. 1: uniform. Needs 'element size'. Unit: 1. "
+                          "Range: 1 to 2.",
+                          Patterns::Double(1, 2));
+        prm.add_parameter("fine lower corner", b.fine_lower_corner,
+                          "Box with grading: lower corner of the fine core 'x, y, z'; empty: the box's lower "
+                          "corner. Unit: m. Range: inside the box.");
+        prm.add_parameter("fine upper corner", b.fine_upper_corner,
+                          "Box with grading: upper corner of the fine core 'x, y, z'; empty: the box's upper "
+                          "corner. Unit: m. Range: inside the box, > fine lower corner.");
         prm.add_parameter("length", b.length, "Rod and cylinder: length along the axis. Unit: m. Range: > 0.",
                           Patterns::Double(0));
         prm.add_parameter("width", b.width, "Rod: side of the square cross-section. Unit: m. Range: > 0.",
@@ -247,6 +309,25 @@ namespace shard::mesh
               if (!(u[d] > l[d]))
                 source.fail(path + "upper corner", b.upper_corner,
                             "must be > lower corner (" + b.lower_corner + ") in every coordinate. Unit: m.");
+            if (b.grading > 1)
+              {
+                if (!(b.element_size > 0))
+                  source.fail(path + "grading", std::to_string(b.grading),
+                              "needs 'element size' > 0 (the size in the fine core). Unit: 1.");
+                const auto fl = b.fine_lower_corner.empty() ? l : point("fine lower corner", b.fine_lower_corner);
+                const auto fu = b.fine_upper_corner.empty() ? u : point("fine upper corner", b.fine_upper_corner);
+                for (unsigned int d = 0; d < 3; ++d)
+                  {
+                    if (!(fl[d] >= l[d] && fl[d] < u[d]))
+                      source.fail(path + "fine lower corner", b.fine_lower_corner,
+                                  "must lie inside the box (" + b.lower_corner + " to " + b.upper_corner +
+                                    ") in every coordinate. Unit: m.");
+                    if (!(fu[d] > fl[d] && fu[d] <= u[d]))
+                      source.fail(path + "fine upper corner", b.fine_upper_corner,
+                                  "must be > fine lower corner and inside the box (up to " + b.upper_corner +
+                                    ") in every coordinate. Unit: m.");
+                  }
+              }
           }
         if (b.shape == "ogive")
           {

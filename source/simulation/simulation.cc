@@ -99,6 +99,30 @@ namespace shard
   }
 
   void
+  Simulation::check_rigid_bodies() const
+  {
+    const auto &bodies = discretization_.bodies();
+    std::vector<bool> converted(bodies.size(), false);
+    for (const auto &cell : discretization_.dof_handler().active_cell_iterators())
+      if (cell->is_locally_owned() && conversion_.converted_cells()[cell->active_cell_index()])
+        converted[cell->material_id()] = true;
+    for (unsigned int b = 0; b < bodies.size(); ++b)
+      {
+        if (!materials_.get(bodies[b].material).rigid())
+          continue;
+        const bool adaptive = std::count(conversion_.adaptive_bodies().begin(), conversion_.adaptive_bodies().end(), b);
+        const bool any      = Utilities::MPI::max(converted[b] ? 1u : 0u, comm_) > 0;
+        const auto particle_bodies = particles_.body_names();
+        const bool particles = std::count(particle_bodies.begin(), particle_bodies.end(), bodies[b].name);
+        if (any || adaptive)
+          source_.fail(particles ? "E - Particles/bodies" : any ? "G - Conversion/regions" : "G - Conversion/adaptive bodies",
+                       bodies[b].name,
+                       "body '" + bodies[b].name + "' has the rigid material '" + bodies[b].material +
+                         "': a rigid body stays FE (no particles, no conversion, no conversion region).");
+      }
+  }
+
+  void
   Simulation::prepare()
   {
     const auto start = Clock::now();
@@ -110,6 +134,7 @@ namespace shard
     materials_.prepare();
     // Particles first: their two-hop stencil widens the ghost set, which changes local indices.
     conversion_.prepare(discretization_, particles_.body_names(), source_);
+    check_rigid_bodies();
     particles_.prepare(discretization_, conversion_.converted_cells(), conditions_.faces(), source_);
     hex_.prepare(discretization_, materials_, conversion_.converted_cells());
     spg_.prepare(discretization_, particles_, materials_);
@@ -176,11 +201,16 @@ namespace shard
     }
     stable_dt_       = std::min(hex_.initial_stable_dt(), spg_.initial_stable_dt());
     first_stable_dt_ = Utilities::MPI::min(stable_dt_, comm_);
+    if (!(first_stable_dt_ < 1e299) && !(integrator_.fixed_time_step() > 0))
+      source_.fail("J - Time integration/fixed time step", "0",
+                   "no element or particle limits the step (every body is rigid): set a fixed time step > 0. "
+                   "Unit: s.");
     f_         = 0;
     f_ext_     = 0;
     conditions_.add_external_forces(0., f_ext_);
     f_ += f_ext_;
     dt_next_ = integrator_.next_dt(stable_dt_, 0.);
+    integrator_.rigid_bodies().prepare(discretization_, materials_, mass_);
     integrator_.kick(0., 0., dt_next_, f_, f_ext_, mass_, d_, conditions_, v_, v_now_, balance_);
     d_.update_ghost_values();
     v_now_.update_ghost_values();
@@ -297,6 +327,9 @@ namespace shard
             }
             // A collapsing step: stopped with the place of the smallest step (collective; every
             // rank has the same global step).
+            // (Only rigid bodies at the start: the first finite step is the reference.)
+            if (!(first_stable_dt_ < 1e299))
+              first_stable_dt_ = stable_dt_;
             if (integrator_.minimum_step_fraction() > 0 &&
                 stable_dt_ < integrator_.minimum_step_fraction() * first_stable_dt_)
               throw fe::Instability(collapsed_step_message());

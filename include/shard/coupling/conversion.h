@@ -139,6 +139,13 @@ namespace shard::coupling
       return !adaptive_bodies_.empty();
     }
 
+    /// Indices of the bodies whose elements may convert during the run.
+    const std::vector<unsigned int> &
+    adaptive_bodies() const
+    {
+      return adaptive_bodies_;
+    }
+
     /// Whether the criteria are checked after step @p step.
     bool
     is_check_step(const unsigned int step) const

@@ -222,4 +222,34 @@ namespace shard::materials
   private:
     IsotropicElasticity elasticity_;
   };
+
+  /**
+   * @brief A rigid FE body (model `rigid`; LS-DYNA's MAT_RIGID): the nodes of its elements
+   * move as one rigid body under the sum of their forces (time::RigidBodies); the elements
+   * carry no stress and limit no step. Density, Young's modulus and Poisson's ratio as for
+   * `elastic`: the density gives the mass, the moduli the contact stiffness of its faces.
+   * FE bodies only (not particles, not converted).
+   */
+  class Rigid : public Elastic
+  {
+  public:
+    /// Returns "rigid".
+    std::string
+    model_name() const override;
+
+    /// True.
+    bool
+    rigid() const override
+    {
+      return true;
+    }
+
+    /**
+     * @brief Sets the stress of the batch to zero (never called by the FE loop, which skips
+     * rigid bodies).
+     * @param batch Points; writes stress and (if not null) wave_speed.
+     */
+    void
+    update(const PointBatch &batch) const override;
+  };
 } // namespace shard::materials

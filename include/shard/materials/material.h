@@ -109,6 +109,16 @@ namespace shard::materials
     virtual std::vector<std::string>
     state_slot_names() const = 0;
 
+    /**
+     * @brief Whether the model is rigid (model `rigid`): elements of it carry no stress and
+     * limit no step; their nodes move as one rigid body (time::RigidBodies). Default false.
+     */
+    virtual bool
+    rigid() const
+    {
+      return false;
+    }
+
     /// Number of history slots per point.
     unsigned int
     n_state_slots() const

@@ -45,6 +45,12 @@ namespace shard::mesh
     double width = 0.01;
     /// Cylinder: radius (m).
     double radius = 0.005;
+    /// Box: growth ratio of the element size outside the fine core (1: uniform).
+    double grading = 1.;
+    /// Box with grading: lower corner of the fine core "x, y, z" (m); empty: the whole box.
+    std::string fine_lower_corner;
+    /// Box with grading: upper corner of the fine core "x, y, z" (m); empty: the whole box.
+    std::string fine_upper_corner;
     /// Ogive: radius of the nose arc in calibers (diameters), the CRH; 0.5 is a hemisphere.
     double nose_crh = 3.;
     /// Ogive: radius of the flat tip (meplat) as a fraction of the radius, in (0, 1).
@@ -73,6 +79,17 @@ namespace shard::mesh
    */
   double
   ogive_nose_length(double radius, double crh, double tip);
+
+  /**
+   * @brief Cell sizes along one edge of a graded `box`: uniform cells of at most @p h in the
+   * fine core [@p fine_lower, @p fine_upper] (clipped to [@p lower, @p upper]), and on either
+   * side cells that grow from the core's cell size by the factor @p ratio per cell, scaled down
+   * together so that they fill the side exactly (m, in order from @p lower). With @p ratio = 1
+   * every cell is uniform over the whole edge.
+   * @pre lower < upper, h > 0, ratio >= 1.
+   */
+  std::vector<double>
+  graded_cell_sizes(double lower, double upper, double fine_lower, double fine_upper, double h, double ratio);
 
   /**
    * @brief Exact volume of the `ogive` shape of total length @p length: the cut ogive nose

@@ -146,6 +146,9 @@ namespace shard
 
     void
     record();
+    /// Stops with an input error if a rigid body is (or may become) particles. @note Collective.
+    void
+    check_rigid_bodies() const;
     /// The fastest node or particle of all ranks, for the energy-limit diagnostic.
     struct FastestNode
     {

@@ -10,6 +10,7 @@
 #include <shard/base/parameters.h>
 #include <shard/bc/boundary_conditions.h>
 #include <shard/mesh/discretization.h>
+#include <shard/time/rigid_bodies.h>
 
 namespace shard::time
 {
@@ -52,6 +53,13 @@ namespace shard::time
       return end_time_;
     }
 
+    /// Fixed step (s); 0: the stable step.
+    double
+    fixed_time_step() const
+    {
+      return fixed_dt_;
+    }
+
     /// Largest number of steps (0: no limit).
     unsigned int
     max_steps() const
@@ -89,12 +97,13 @@ namespace shard::time
     double
     next_dt(double stable_dt, double t);
 
-    /// d += dt v on owned entries.
+    /// d += dt v on owned entries (rigid bodies: their exact rotation; their v turns with them).
     void
-    drift(double dt, const mesh::Vector &v, mesh::Vector &d) const;
+    drift(double dt, mesh::Vector &v, mesh::Vector &d);
 
     /**
-     * @brief The kick at time @p t: unconstrained update with a = f / m, kinematic conditions,
+     * @brief The kick at time @p t: unconstrained update with a = f / m, the rigid-body
+     * projection (RigidBodies::project), kinematic conditions,
      * integer-step kinetic energy and momentum, work of tractions and reactions.
      *
      * @param[in] dt_old the step just taken (0 at the start)
@@ -110,7 +119,15 @@ namespace shard::time
          const mesh::Vector &mass, const mesh::Vector &d, bc::BoundaryConditions &conditions, mesh::Vector &v,
          mesh::Vector &v_now, LocalBalance &balance);
 
+    /// The rigid bodies whose nodes the kick moves as one (prepare them before the first kick).
+    RigidBodies &
+    rigid_bodies()
+    {
+      return rigid_;
+    }
+
   private:
+    RigidBodies  rigid_;
     double       end_time_           = 1e-4;
     double       safety_factor_      = 0.9;
     double       fixed_dt_           = 0.;

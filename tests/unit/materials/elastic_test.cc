@@ -194,10 +194,15 @@ TEST(ElasticTest, RejectsPoissonRatioOutsideOpenRange)
 
 TEST(ElasticTest, RegistryAndNoHistory)
 {
-  EXPECT_EQ(materials::material_model_names(), "elastic|von mises|kcc");
+  EXPECT_EQ(materials::material_model_names(), "elastic|von mises|kcc|rigid");
   EXPECT_TRUE(materials::create_material("no such model") == nullptr);
   const auto material = make("elastic");
   EXPECT_EQ(material->model_name(), "elastic");
   EXPECT_EQ(material->n_state_slots(), 0u);
   EXPECT_EQ(material->state_slot(materials::slot::plastic_strain), -1);
+  EXPECT_FALSE(material->rigid());
+  const auto rigid = make("rigid");
+  EXPECT_EQ(rigid->model_name(), "rigid");
+  EXPECT_TRUE(rigid->rigid());
+  EXPECT_EQ(rigid->n_state_slots(), 0u);
 }

@@ -1,0 +1,190 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: LGPL-2.1-or-later
+"""Results of the Hanchak slab perforation (prm/examples/hanchak/hanchak.prm, doc/validation.md):
+
+    hanchak_report.py run OUTPUT_DIR [--json FILE]     one run: residual velocity, exit time,
+                                                       front crater, scab, fragments
+    hanchak_report.py sweep CSV PNG [--tests FILE]     Recht-Ipson fit of residual_velocity.csv and
+                                                       the plot (numpy, matplotlib)
+
+Definitions of one run (slab 178 mm thick between z = -0.178 and 0, shot along -z):
+  residual velocity  the projectile's mean velocity -v_z at the end of the run if its tail
+             (the largest z of the projectile) has passed the rear face z = -0.178; 0 otherwise
+             (stopped or stuck in the slab); perforated = the tail passed the rear face;
+  exit time  the first history row at which the tip (the smallest z) passes the rear face;
+  front crater / scab  at the last field output, the particles on the front face (z = 0) or the
+             rear face (z = -0.178) in the reference configuration that have moved more than
+             one spacing (the 6 mm element size) from their place: their face area (particle
+             volume / half a layer) as the diameter of the circle of that area, and their
+             largest distance from the shot line;
+  fragments  from fragments.csv at the last output: count, the slab (heaviest), the debris
+             (everything but the slab and the projectile), its largest piece and fastest speed.
+
+Recht-Ipson: v_r = a (v_s^p - v_bl^p)^(1/p) for v_s > v_bl, else 0; a, p and v_bl are fitted by
+least squares on every run (a in closed form for each (v_bl, p) of a grid search).
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from shard_output import last_fragments, last_pieces, read_vtu  # noqa: E402
+
+REAR, FRONT, SPACING = -0.178, 0.0, 0.006
+
+
+def history(out_dir):
+    with open(os.path.join(out_dir, "history.csv")) as f:
+        return list(csv.DictReader(f))
+
+
+def face_damage(out_dir, z_face):
+    """(equivalent diameter, largest radius) of the face particles that moved more than a spacing."""
+    area, rmax = 0.0, 0.0
+    for piece in last_pieces(out_dir, "particles"):
+        a = read_vtu(piece)
+        x, d, vol = a["Points"][0], a["displacement"][0], a["volume"][0]
+        for i in range(len(vol)):
+            X = [x[3 * i + k] - d[3 * i + k] for k in range(3)]
+            if abs(X[2] - z_face) > 1e-3 * SPACING:
+                continue
+            if math.sqrt(sum(d[3 * i + k] ** 2 for k in range(3))) > SPACING:
+                area += vol[i] / (0.5 * SPACING)
+                rmax = max(rmax, math.hypot(X[0], X[1]))
+    return 2 * math.sqrt(area / math.pi), rmax
+
+
+def parameter(out_dir, path):
+    """The value of the key at 'A/B/key' in the run's parameters.prm (None if absent)."""
+    import re
+    stack = []
+    with open(os.path.join(out_dir, "parameters.prm")) as f:
+        for line in f:
+            t = line.split("#")[0].strip()
+            if t.startswith("subsection "):
+                stack.append(t[len("subsection "):].strip())
+            elif t == "end":
+                stack.pop()
+            else:
+                m = re.match(r"set (.*?)\s*=\s*(.*)", t)
+                if m and "/".join(stack + [m.group(1).strip()]) == path:
+                    return m.group(2).strip()
+    return None
+
+
+def run_report(out_dir):
+    rows = history(out_dir)
+    last = rows[-1]
+    tail, v = float(last["tail_z"]), -float(last["v_projectile"])
+    perforated = tail < REAR
+    exit_time = next((float(r["time"]) for r in rows if float(r["tip_z"]) < REAR), None)
+    with open(os.path.join(out_dir, "summary.json")) as f:
+        summary = json.load(f)
+    crater, crater_r = face_damage(out_dir, FRONT)
+    scab, scab_r = face_damage(out_dir, REAR)
+    t, frags = last_fragments(os.path.join(out_dir, "fragments.csv"))
+    frags.sort(key=lambda r: -float(r["mass"]))
+    # The projectile is the fragment of nodes moving fastest along -z among the two heaviest
+    # pieces of nodes; the slab is the heaviest.
+    slab = frags[0]
+    projectile = min(frags[:3], key=lambda r: float(r["vz"]))
+    debris = [r for r in frags if r is not slab and r is not projectile]
+    return {
+        "residual_velocity": v if perforated else 0.0, "final_velocity": v, "perforated": perforated,
+        "exit_time": exit_time, "end_time": float(last["time"]), "tail_z": tail,
+        "front_crater_diameter": crater, "front_crater_radius_max": crater_r,
+        "scab_diameter": scab, "scab_radius_max": scab_r,
+        "n_fragments": len(frags), "debris_mass": sum(float(r["mass"]) for r in debris),
+        "largest_debris_mass": max([float(r["mass"]) for r in debris] + [0.0]),
+        "fastest_debris_speed": max([math.sqrt(sum(float(r[c]) ** 2 for c in ("vx", "vy", "vz"))) for r in debris] + [0.0]),
+        "energy_error": summary.get("energy_error"), "max_abs_energy_error": summary.get("max_abs_energy_error"),
+        "steps": summary.get("steps"), "wall_time": summary.get("wall_time_s"),
+        "particles": summary.get("n_particles"), "elements": summary.get("n_elements"),
+        "spacing": float(parameter(out_dir, "B - Mesh/slab/element size") or "nan"),
+        "dilation": float(parameter(out_dir, "E - Particles/dilation") or "nan"),
+        "bond_criterion": parameter(out_dir, "E - Particles/bond failure/concrete/criterion"),
+        "bond_threshold": parameter(out_dir, "E - Particles/bond failure/concrete/threshold"),
+        "projectile_material": parameter(out_dir, "B - Mesh/projectile/material"),
+    }
+
+
+def recht_ipson(vs, vr):
+    """(a, p, v_bl, rms) of the least-squares Recht-Ipson fit."""
+    best = None
+    vmax = max(vs)
+    lo = max([s for s, r in zip(vs, vr) if r <= 0] + [0.0])
+    hi = min([s for s, r in zip(vs, vr) if r > 0] + [vmax])
+    for i in range(401):
+        vbl = lo + (hi - lo) * i / 400
+        for j in range(1, 121):
+            p = 1.0 + 0.05 * (j - 1)
+            g = [(s ** p - vbl ** p) ** (1 / p) if s > vbl else 0.0 for s in vs]
+            gg = sum(x * x for x in g)
+            if gg == 0:
+                continue
+            a = min(1.0, sum(x * y for x, y in zip(g, vr)) / gg)
+            rms = math.sqrt(sum((a * x - y) ** 2 for x, y in zip(g, vr)) / len(vs))
+            if best is None or rms < best[3]:
+                best = (a, p, vbl, rms)
+    return best
+
+
+def sweep(csv_path, png, tests):
+    with open(csv_path) as f:
+        rows = list(csv.DictReader(f))
+    vs = [float(r["striking_velocity"]) for r in rows]
+    vr = [float(r["residual_velocity"]) for r in rows]
+    a, p, vbl, rms = recht_ipson(vs, vr)
+    print(f"Recht-Ipson fit of {csv_path}: a = {a:.3f}, p = {p:.2f}, ballistic limit {vbl:.0f} m/s, rms {rms:.1f} m/s")
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    xs = [vbl + (max(vs) * 1.05 - vbl) * i / 200 for i in range(201)]
+    ax.plot([0, vbl] + xs, [0, 0] + [a * (x ** p - vbl ** p) ** (1 / p) for x in xs], "-", color="tab:blue",
+            label=f"Recht-Ipson fit: $v_{{bl}}$ = {vbl:.0f} m/s, a = {a:.2f}, p = {p:.2f}")
+    ax.plot(vs, vr, "o", color="tab:blue", label="shard (K&C, f'c = 48 MPa)")
+    if tests:
+        with open(tests) as f:
+            t = [r for r in csv.DictReader(f)]
+        ax.plot([float(r["striking_velocity"]) for r in t], [float(r["residual_velocity"]) for r in t], "s",
+                mfc="none", color="k", label=t[0].get("source", "tests"))
+    ax.plot([0, 1200], [0, 1200], ":", color="grey", lw=0.8)
+    ax.set_xlim(0, max(vs) * 1.1)
+    ax.set_ylim(0, max(vs) * 1.05)
+    ax.set_xlabel("striking velocity (m/s)")
+    ax.set_ylabel("residual velocity (m/s)")
+    ax.set_title("Hanchak et al. (1992) slab, 178 mm, 48 MPa")
+    ax.legend(fontsize=8, loc="upper left")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(png, dpi=130)
+    return {"a": a, "p": p, "ballistic_limit": vbl, "rms": rms}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    r = sub.add_parser("run")
+    r.add_argument("out_dir")
+    r.add_argument("--json")
+    s = sub.add_parser("sweep")
+    s.add_argument("csv")
+    s.add_argument("png")
+    s.add_argument("--tests", help="CSV of test points (striking_velocity, residual_velocity, source)")
+    s.add_argument("--json")
+    args = ap.parse_args()
+    res = run_report(args.out_dir) if args.cmd == "run" else sweep(args.csv, args.png, args.tests)
+    if args.cmd == "run":
+        for k, v in res.items():
+            print(f"  {k:24s} {v}")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(res, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
