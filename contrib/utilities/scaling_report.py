@@ -38,6 +38,29 @@ def step_time(r):
     return max(sum(p[n] for n in STEP) for p in rank_phases(r))
 
 
+WORK = [n for n in STEP if n not in ("3 exchange", "8 accumulate")]
+
+
+def rank_cpu(r):
+    """Per rank: dict phase -> CPU seconds of the main thread (phase_cpu_time_by_rank_s)."""
+    return [dict(zip(NAMES, times)) for times in r.get("phase_cpu_time_by_rank_s", [])]
+
+
+def cpu_step(r):
+    """CPU time of the slowest rank: its work phases plus the smallest exchange CPU time of any
+    rank (an upper bound of the messages; the rest of 3 + 8 is waiting, spun or slept)."""
+    c = rank_cpu(r)
+    if not c:
+        return float("nan")
+    comm = min(p["3 exchange"] + p["8 accumulate"] for p in c)
+    return max(sum(p[n] for n in WORK) for p in c) + comm
+
+
+def cpu_work(r):
+    c = rank_cpu(r)
+    return max(sum(p[n] for n in WORK) for p in c) if c else float("nan")
+
+
 def share(r, names):
     """Largest share over ranks of the phases `names` in that rank's step time."""
     return max(sum(p[n] for n in names) / sum(p[n] for n in STEP) for p in rank_phases(r))
@@ -81,20 +104,26 @@ for variant in sorted(runs, key=lambda v: ["np1", "np2", "np2-cellcount"].index(
     st = stats([step_time(r) for r in rs.values()])
     sp = stats([step_time(base[i]) / step_time(r) for i, r in rs.items() if i in base])
     ex = stats([share(r, ["3 exchange", "8 accumulate"]) for r in rs.values()])
+    cs = stats([cpu_step(base[i]) / cpu_step(r) for i, r in rs.items() if i in base])
+    cw = stats([cpu_work(base[i]) / cpu_work(r) for i, r in rs.items() if i in base])
+    cpu_cols = f"{fmt(cs)} | {fmt(cw)} |"
     fi = stats([force_imbalance(r) for r in rs.values()])
     part = r0.get("partition", {})
     epr = "/".join(f"{x:.0f}" for x in part.get("elements_per_rank", []))
     ppr = "/".join(f"{x:.0f}" for x in part.get("particles_per_rank", []))
     wi, wc = part.get("work_imbalance", float("nan")), part.get("work_imbalance_cell_count", 0)
     ranks = r0["n_mpi_ranks"]
-    rows.append(f"| {variant} | {ranks} | {len(rs)} | {fmt(st, '{:.2f}')} | {fmt(sp)} | {fmt(ex, '{:.3f}')} | "
+    rows.append(f"| {variant} | {ranks} | {len(rs)} | {fmt(st, '{:.2f}')} | {fmt(sp)} | {cpu_cols} {fmt(ex, '{:.3f}')} | "
                 f"{fmt(fi)} | {wi:.3f} | {epr} | {ppr} |")
     csv_rows.append(f"{variant},{ranks},{len(rs)},{r0['n_elements'] - r0['n_converted_elements']},"
                     f"{r0['n_particles']},{r0['steps']},{st[0]:.4g},{st[1]:.4g},{st[2]:.4g},{sp[0]:.4g},{sp[1]:.4g},"
-                    f"{sp[2]:.4g},{ex[0]:.4g},{fi[0]:.4g},{wi:.4g},{wc:.4g},{epr},{ppr}")
+                    f"{sp[2]:.4g},{cs[0]:.4g},{cs[1]:.4g},{cs[2]:.4g},{ex[0]:.4g},{fi[0]:.4g},{wi:.4g},{wc:.4g},{epr},{ppr}")
     if variant != "np1":
         # Phases per rank, medians over the runs.
         phases[variant] = [[med(rank_phases(r)[k][n] for r in rs.values()) for n in STEP] for k in range(ranks)]
+        if all(rank_cpu(r) for r in rs.values()):
+            phases[variant + ", CPU time"] = [[med(rank_cpu(r)[k][n] for r in rs.values()) for n in STEP]
+                                              for k in range(ranks)]
 with open(csv_path, "w") as f:
     f.write("\n".join(csv_rows) + "\n")
 
@@ -104,11 +133,13 @@ stamp = (f"Measured {datetime.date.today()} on {cpu}, commit {commit} (binary: s
          f"{any_run.get('n_particles', 0)} particles, {any_run.get('steps', 0)} steps; medians of the interleaved "
          "rounds (range in parentheses).")
 t = [stamp, "",
-     "| variant | ranks | runs | step time, phases 1-9 (s) | speed-up vs 1 rank | exchange share (3 + 8) | "
-     "force imbalance (5 + 6, max/mean) | work imbalance (model) | elements per rank | particles per rank |",
-     "|---" * 10 + "|"] + rows
-for variant in ("np2", "np2-cellcount"):
-    if variant in phases:
+     "| variant | ranks | runs | step time, phases 1-9 (s) | speed-up vs 1 rank (wall) | "
+     "speed-up, CPU time (work + least exchange) | speed-up, CPU time (work phases only) | "
+     "exchange share (3 + 8, wall) | force imbalance (5 + 6 wall, max/mean) | work imbalance (model) | "
+     "elements per rank | particles per rank |",
+     "|---" * 12 + "|"] + rows
+for variant in phases:
+    if True:
         t += ["", f"Phases per rank, {variant} (s, medians):", "",
               "| rank | " + " | ".join(STEP) + " |", "|---" * (1 + len(STEP)) + "|"]
         for k, p in enumerate(phases[variant]):

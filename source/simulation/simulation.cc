@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include <sys/resource.h>
+#include <ctime>
 
 namespace shard
 {
@@ -29,7 +30,22 @@ namespace shard
                                          "4 topology",     "5 FE force",   "6 particle force",
                                          "7 loads",        "8 accumulate", "9 kick",    "10 record"};
 
-    /// Adds the wall time of a scope to one phase.
+    /// CPU time of the calling thread (s).
+    double
+    thread_cpu_time()
+    {
+      timespec t{};
+      clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+      return t.tv_sec + 1e-9 * t.tv_nsec;
+    }
+
+    /// CPU time of this rank's main thread per phase (phase_cpu_time_by_rank_s of summary.json;
+    /// one Simulation per process runs at a time, reset at the start of Simulation::run()). On a
+    /// shared machine it shows the work of a phase without the time the rank was descheduled
+    /// (doc/performance.md, MPI scaling).
+    std::array<double, 11> phase_cpu_time{};
+
+    /// Adds the wall time of a scope to one phase (and its CPU time to phase_cpu_time).
     class PhaseTimer
     {
     public:
@@ -37,16 +53,19 @@ namespace shard
         : times_(times)
         , phase_(phase)
         , start_(Clock::now())
+        , cpu_start_(thread_cpu_time())
       {}
       ~PhaseTimer()
       {
         times_[phase_] += std::chrono::duration<double>(Clock::now() - start_).count();
+        phase_cpu_time[phase_] += thread_cpu_time() - cpu_start_;
       }
 
     private:
       std::array<double, 11> &times_;
       unsigned int            phase_;
       Clock::time_point       start_;
+      double                  cpu_start_;
     };
 
     std::string
@@ -170,6 +189,7 @@ namespace shard
     const auto         start = Clock::now();
     const unsigned int rank  = Utilities::MPI::this_mpi_process(comm_);
     RunResult          result{"completed", "", 0};
+    phase_cpu_time.fill(0.);
 
     if (rank == 0)
       {
@@ -864,6 +884,7 @@ namespace shard
     const double element_bytes = Utilities::MPI::sum(double(hex_.memory_consumption()), comm_);
     const double n_hexes       = Utilities::MPI::sum(double(hex_.n_local_elements()), comm_);
     const auto   rank_times    = Utilities::MPI::all_gather(comm_, std::vector<double>(phase_time_.begin(), phase_time_.end()));
+    const auto   rank_cpu      = Utilities::MPI::all_gather(comm_, std::vector<double>(phase_cpu_time.begin(), phase_cpu_time.end()));
     rusage usage{};
     getrusage(RUSAGE_SELF, &usage);
     const double peak_rss = Utilities::MPI::max(1024. * usage.ru_maxrss, comm_);
@@ -931,6 +952,10 @@ namespace shard
     j << "  \"phase_time_by_rank_s\": [";
     for (unsigned int r = 0; r < rank_times.size(); ++r)
       j << (r ? ", " : "") << list(rank_times[r]);
+    j << "],\n";
+    j << "  \"phase_cpu_time_by_rank_s\": [";
+    for (unsigned int r = 0; r < rank_cpu.size(); ++r)
+      j << (r ? ", " : "") << list(rank_cpu[r]);
     j << "],\n";
     j << "  \"phase_time_s\": {";
     for (unsigned int p = 0; p < 11; ++p)
