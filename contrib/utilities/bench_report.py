@@ -1,18 +1,20 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: LGPL-2.1-or-later
-"""Summarise contrib/bench runs: medians (min, max) per method and material.
+"""Summarise contrib/bench runs: one row per scene, medians (min to max) over the runs.
 
-bench_report.py OUT FE_CSV MD [PARTICLE_CSV]
-OUT holds one directory per run, <method>_<material>_<i> (method fe or particles; older
-<material>_<i> directories count as fe), each with a summary.json. Writes the FE rows to FE_CSV
-and the Markdown table between <!-- BENCH BEGIN --> and <!-- BENCH END --> of MD; with particle
-runs, also PARTICLE_CSV (default: bench_particles.csv beside FE_CSV) and the particle tables
-between <!-- PARTICLE BENCH BEGIN --> and <!-- PARTICLE BENCH END -->.
+bench_report.py OUT CSV MD [SECONDS]
+OUT holds one directory per run, <row>_<i> (row e.g. fe_elastic, particles_von_mises,
+hybrid_von_mises, showcase), each with a summary.json. Writes CSV and, between
+<!-- BENCH BEGIN --> and <!-- BENCH END --> of MD, the table, the per-core targets of issue 8
+and the time per phase. SECONDS (optional) is the wall time of the whole suite, quoted in MD.
 
-Particle cost per particle-step: phase 6 (particle force) / (particles x steps). The comparison
-with the elements at the same spacing is per node: the wall time of the step phases 1-9 (all
-but set-up and record) divided by (nodes x steps) for the FE run and by (particles x steps) for
-the particle run (one particle per node), and the same for the force phase alone (5 or 6).
+Rates (benchmarks.md 1.4): element-steps/s = element force evaluations / time of phase 5 (FE
+force), particle-steps/s = particle force evaluations / time of phase 6; the counts come from
+summary.json (element_steps_per_s x phase 5). "Step" is the sum of phases 1-9 (set-up 0 and
+record 10 excluded), per element or particle-step when only one kind is present. Memory per
+element: HexForce::memory_consumption() (element_bytes) over the elements; per particle:
+ParticleSet + SpgForce (particle_bytes) over the particles; the distributed vectors
+(vector_bytes_per_dof x 3 per node) and the peak resident set size are separate columns.
 """
 import datetime
 import glob
@@ -24,14 +26,16 @@ import subprocess
 import sys
 
 out, csv_path, md_path = sys.argv[1:4]
-pcsv_path = sys.argv[4] if len(sys.argv) > 4 else os.path.join(os.path.dirname(csv_path), "bench_particles.csv")
+suite_seconds = float(sys.argv[4]) if len(sys.argv) > 4 else None
+ORDER = ["fe_elastic", "fe_von_mises", "fe_concrete", "particles_elastic", "particles_von_mises",
+         "particles_concrete", "hybrid_von_mises", "showcase"]
+SCENE = {"fe": "block.prm", "particles": "block.prm, bodies=block", "hybrid": "block_hybrid.prm",
+         "showcase": "showcase.prm to 20 us"}
 groups = {}
 for f in sorted(glob.glob(os.path.join(out, "*", "summary.json"))):
-    name = os.path.basename(os.path.dirname(f)).rsplit("_", 1)[0]
-    method, _, material = name.partition("_")
-    if method not in ("fe", "particles"):
-        method, material = "fe", name
-    groups.setdefault((method, material.replace("_", " ")), []).append(json.load(open(f)))
+    name, _, i = os.path.basename(os.path.dirname(f)).rpartition("_")
+    groups.setdefault(name, {})[int(i)] = json.load(open(f))
+rows = sorted(groups, key=lambda n: (ORDER.index(n) if n in ORDER else len(ORDER), n))
 
 cpu = "unknown CPU"
 try:
@@ -46,107 +50,153 @@ try:
                             capture_output=True, text=True).stdout.strip() or "unknown"
 except OSError:
     commit = "unknown"
-version = next((r[0].get("shard_version", "") for r in groups.values()), "")
+version = next((r.get("shard_version", "") for g in groups.values() for r in g.values()), "")
+n_runs = max((len(g) for g in groups.values()), default=0)
 stamp = (f"Measured {datetime.date.today()} on {cpu}, 1 MPI rank, 1 thread, commit {commit} "
-         f"(binary: shard {version}); medians of the runs (range in parentheses).")
+         f"(binary: shard {version}), {n_runs} interleaved runs per row"
+         + (f", {suite_seconds / 60:.1f} min for the suite" if suite_seconds else "")
+         + "; medians of the runs (range in parentheses).")
 
 med = statistics.median
 step_phases = ["1 step size", "2 drift", "3 exchange", "4 topology", "5 FE force", "6 particle force", "7 loads",
                "8 accumulate", "9 kick"]
+phase_cols = ["0 set-up", "3 exchange", "4 topology", "5 FE force", "6 particle force", "7 loads", "8 accumulate",
+              "9 kick", "10 record"]
+nan = float("nan")
+
+
+def ph(r, p):
+    return r["phase_time_s"].get(p, 0.0)
 
 
 def step_time(r):
-    return sum(r["phase_time_s"].get(p, 0.0) for p in step_phases)
+    return sum(ph(r, p) for p in step_phases)
 
 
-def nodes(r):
-    return r["n_dofs"] / 3 if r.get("n_dofs") else None
+def element_steps(r):
+    return r.get("element_steps_per_s", 0) * ph(r, "5 FE force")
 
 
-def fmt_range(xs, f="{:.3g}"):
-    return f"{f.format(med(xs))} ({f.format(min(xs))} to {f.format(max(xs))})"
+def particle_steps(r):
+    return r.get("particle_steps_per_s", 0) * ph(r, "6 particle force")
 
 
-# FE table (unchanged layout).
-phases = ["5 FE force", "2 drift", "3 exchange", "8 accumulate", "9 kick", "10 record"]
-rows, lines = [], []
-header = ("material,elements,steps,runs,element_steps_per_s_median,min,max,us_per_element_step_median,"
-          + ",".join(f"{p.split(' ', 1)[1].replace(' ', '_')}_s_median" for p in phases))
-fe = {m: runs for (meth, m), runs in groups.items() if meth == "fe"}
-for name, runs in fe.items():
-    eps = [r["element_steps_per_s"] for r in runs]
-    us = [r["us_per_element_step"] for r in runs]
-    ph = [med(r["phase_time_s"][p] for r in runs) for p in phases]
-    rows.append(f"{name},{runs[0]['n_elements']},{runs[0]['steps']},{len(runs)},{med(eps):.4g},"
-                f"{min(eps):.4g},{max(eps):.4g},{med(us):.4f}," + ",".join(f"{x:.4g}" for x in ph))
-    lines.append(f"| {name} | {runs[0]['n_elements']} | {runs[0]['steps']} | {len(runs)} | "
-                 f"{med(eps):.3g} ({min(eps):.3g} to {max(eps):.3g}) | "
-                 f"**{med(us):.3f}** | " + " | ".join(f"{x:.3f}" for x in ph) + " |")
-if fe:
-    with open(csv_path, "w") as f:
-        f.write(header + "\n" + "\n".join(rows) + "\n")
-table = [stamp, "",
-         "| material | elements | steps | runs | element-steps/s | us per element-step (phase 5) | "
-         + " | ".join(f"{p} (s)" for p in phases) + " |",
-         "|---" * (6 + len(phases)) + "|"] + lines
+def stats(xs):
+    xs = [x for x in xs if x == x]
+    return (med(xs), min(xs), max(xs)) if xs else (nan, nan, nan)
+
+
+def fmt(s, f="{:.3g}", bold=False):
+    m, lo, hi = s
+    if m != m:
+        return "-"
+    core = f.format(m)
+    return (f"**{core}**" if bold else core) + (f" ({f.format(lo)} to {f.format(hi)})" if lo != hi else "")
+
+
+summary = {}
+for name in rows:
+    runs = list(groups[name].values())
+    r0 = runs[0]
+    es = [element_steps(r) for r in runs]
+    ps = [particle_steps(r) for r in runs]
+    steps = r0["steps"]
+    n_el = med(es) / steps if med(es) > 0 else 0
+    n_p = med(ps) / steps if med(ps) > 0 else 0
+    s = {
+        "steps": steps,
+        "runs": len(runs),
+        "elements": n_el,
+        "particles": n_p,
+        "eps": stats([r["element_steps_per_s"] for r in runs if r.get("element_steps_per_s", 0) > 0]),
+        "us_e": stats([r["us_per_element_step"] for r in runs if r.get("us_per_element_step", 0) > 0]),
+        "pps": stats([r["particle_steps_per_s"] for r in runs if r.get("particle_steps_per_s", 0) > 0]),
+        "us_p": stats([r["us_per_particle_step"] for r in runs if r.get("us_per_particle_step", 0) > 0]),
+        "step_ms": stats([1e3 * step_time(r) / r["steps"] for r in runs]),
+        "b_e": stats([r.get("element_bytes", nan) / (element_steps(r) / r["steps"]) for r in runs
+                      if element_steps(r) > 0]),
+        "b_p": stats([r.get("particle_bytes", nan) / (particle_steps(r) / r["steps"]) for r in runs
+                      if particle_steps(r) > 0]),
+        "b_v": stats([3 * r.get("vector_bytes_per_dof", nan) for r in runs]),
+        "rss": stats([r.get("peak_rss_bytes", nan) / 1e6 for r in runs]),
+        "phases": {p: med(ph(r, p) for r in runs) for p in step_phases + ["0 set-up", "10 record"]},
+        "per_run": groups[name],
+    }
+    summary[name] = s
+
+# CSV: one line per row.
+cols = ["row", "elements", "particles", "steps", "runs", "element_steps_per_s_median", "min", "max",
+        "us_per_element_step_median", "min", "max", "particle_steps_per_s_median", "min", "max",
+        "us_per_particle_step_median", "min", "max", "ms_per_step_phases_1_9_median", "bytes_per_element",
+        "bytes_per_particle", "vector_bytes_per_node", "peak_rss_mb_median"] + \
+       [f"{p.split(' ', 1)[1].replace(' ', '_').replace('-', '')}_s_median" for p in ["0 set-up"] + step_phases + ["10 record"]]
+lines = [",".join(cols)]
+for name in rows:
+    s = summary[name]
+    vals = [name, f"{s['elements']:.0f}", f"{s['particles']:.0f}", str(s["steps"]), str(s["runs"])]
+    for k in ("eps", "us_e", "pps", "us_p"):
+        vals += [f"{x:.5g}" for x in s[k]]
+    vals += [f"{s['step_ms'][0]:.5g}", f"{s['b_e'][0]:.1f}", f"{s['b_p'][0]:.1f}", f"{s['b_v'][0]:.1f}",
+             f"{s['rss'][0]:.1f}"]
+    vals += [f"{s['phases'][p]:.4g}" for p in ["0 set-up"] + step_phases + ["10 record"]]
+    lines.append(",".join(v.replace("nan", "") for v in vals))
+os.makedirs(os.path.dirname(os.path.abspath(csv_path)), exist_ok=True)
+with open(csv_path, "w") as f:
+    f.write("\n".join(lines) + "\n")
+
+# Markdown table.
+t = [stamp, "",
+     "| row | scene | elements | particles | steps | element-steps/s | us per element-step (phase 5) | "
+     "particle-steps/s | us per particle-step (phase 6) | ms per step (phases 1-9) | bytes per element | "
+     "bytes per particle | vector bytes per node | peak RSS (MB) |",
+     "|---" * 14 + "|"]
+for name in rows:
+    s = summary[name]
+    kind = name.split("_", 1)[0]
+    t.append(f"| {name.replace('_', ' ')} | {SCENE.get(kind, '')} | {s['elements']:.0f} | {s['particles']:.0f} | "
+             f"{s['steps']} | {fmt(s['eps'])} | {fmt(s['us_e'], '{:.3f}', True)} | {fmt(s['pps'])} | "
+             f"{fmt(s['us_p'], '{:.3f}', True)} | {fmt(s['step_ms'], '{:.1f}')} | {fmt(s['b_e'], '{:.0f}')} | "
+             f"{fmt(s['b_p'], '{:.0f}')} | {s['b_v'][0]:.0f} | {s['rss'][0]:.0f} |")
+
+
+# Per-core targets of issue 8.
+def ratio_per_run(a, b, key):
+    ra, rb = summary.get(a, {}).get("per_run", {}), summary.get(b, {}).get("per_run", {})
+    xs = [ra[i][key] / rb[i][key] for i in ra if i in rb and rb[i].get(key, 0) > 0]
+    return stats(xs) if xs else (nan, nan, nan)
+
+
+def target(label, s, limit, unit):
+    m = s[0]
+    verdict = "-" if m != m else ("**pass**" if m <= limit else "**FAIL**")
+    return f"| {label} | <= {limit:g}{unit} | {fmt(s, '{:.3f}')} | {verdict} |"
+
+
+t += ["", "Per-core targets of issue 8 (medians over the runs; for the ratio, the median of the run-by-run "
+      "ratios of the interleaved runs):", "",
+      "| target | limit | measured | result |", "|---|---|---|---|"]
+if "fe_von_mises" in summary:
+    t.append(target("FE von Mises, us per element-step", summary["fe_von_mises"]["us_e"], 1.0, " us"))
+if "particles_elastic" in summary:
+    t.append(target("particles elastic, us per particle-step", summary["particles_elastic"]["us_p"], 0.7, " us"))
+if "fe_concrete" in summary and "fe_von_mises" in summary:
+    t.append(target("K&C / von Mises, FE per element-step", ratio_per_run("fe_concrete", "fe_von_mises",
+                                                                          "us_per_element_step"), 2.0, ""))
+if "particles_concrete" in summary and "particles_von_mises" in summary:
+    s = ratio_per_run("particles_concrete", "particles_von_mises", "us_per_particle_step")
+    t.append(f"| K&C / von Mises, particles (not a target) | - | {fmt(s, '{:.3f}')} | - |")
+
+t += ["", "Time per phase (s, medians; 0 set-up and 10 record are outside the step):", "",
+      "| row | runs | " + " | ".join(phase_cols) + " |", "|---" * (2 + len(phase_cols)) + "|"]
+for name in rows:
+    s = summary[name]
+    t.append(f"| {name.replace('_', ' ')} | {s['runs']} | " + " | ".join(f"{s['phases'][p]:.3f}" for p in phase_cols)
+             + " |")
+
 text = open(md_path).read() if os.path.exists(md_path) else "<!-- BENCH BEGIN -->\n<!-- BENCH END -->\n"
-if fe:
-    text = re.sub(r"<!-- BENCH BEGIN -->.*<!-- BENCH END -->",
-                  "<!-- BENCH BEGIN -->\n" + "\n".join(table) + "\n<!-- BENCH END -->", text, flags=re.S)
-    print("\n".join(table))
-
-# Particle tables.
-pt = {m: runs for (meth, m), runs in groups.items() if meth == "particles"}
-if pt:
-    prow, t1, t2 = [], [], []
-    pheader = ("material,particles,steps,runs,particle_steps_per_s_median,min,max,us_per_particle_step_median,min,max,"
-               "us_per_particle_step_all_phases_median,fe_us_per_node_step_all_phases_median,"
-               "ratio_particle_fe_per_node_all_phases,ratio_particle_fe_per_node_force,bytes_per_particle,"
-               "vector_bytes_per_particle,peak_rss_bytes_median,setup_s_median,"
-               + ",".join(f"{p.split(' ', 1)[1].replace(' ', '_')}_s_median" for p in step_phases + ["10 record"]))
-    phase_cols = ["0 set-up", "5 FE force", "6 particle force", "2 drift", "3 exchange", "7 loads", "8 accumulate",
-                  "9 kick", "10 record"]
-    for name, runs in pt.items():
-        n, steps = runs[0]["n_particles"], runs[0]["steps"]
-        ps = [r["particle_steps_per_s"] for r in runs]
-        us = [r["us_per_particle_step"] for r in runs]
-        us_all = [1e6 * step_time(r) / (r["n_particles"] * r["steps"]) for r in runs]
-        bpp = med(r.get("bytes_per_particle", float("nan")) for r in runs)
-        vpp = med(3 * r.get("vector_bytes_per_dof", float("nan")) for r in runs)
-        rss = med(r.get("peak_rss_bytes", float("nan")) for r in runs)
-        ref = fe.get(name)
-        if ref:
-            nn = nodes(ref[0]) or n
-            fe_all = med(1e6 * step_time(r) / (nn * r["steps"]) for r in ref)
-            fe_force = med(1e6 * r["phase_time_s"]["5 FE force"] / (nn * r["steps"]) for r in ref)
-            ratio_all, ratio_force = med(us_all) / fe_all, med(us) / fe_force
-        else:
-            nn = fe_all = fe_force = ratio_all = ratio_force = float("nan")
-        ph = {p: med(r["phase_time_s"].get(p, 0.0) for r in runs) for p in step_phases + ["0 set-up", "10 record"]}
-        prow.append(f"{name},{n},{steps},{len(runs)},{med(ps):.4g},{min(ps):.4g},{max(ps):.4g},{med(us):.4f},"
-                    f"{min(us):.4f},{max(us):.4f},{med(us_all):.4f},{fe_all:.4f},{ratio_all:.3f},{ratio_force:.3f},"
-                    f"{bpp:.1f},{vpp:.1f},{rss:.4g},{ph['0 set-up']:.4g},"
-                    + ",".join(f"{ph[p]:.4g}" for p in step_phases + ["10 record"]))
-        t1.append(f"| {name} | {n} | {steps} | {len(runs)} | {fmt_range(ps)} | **{med(us):.3f}** ({min(us):.3f} to "
-                  f"{max(us):.3f}) | {med(us_all):.3f} | {fe_all:.3f} ({nn:.0f} nodes) | **{ratio_all:.2f}** "
-                  f"({ratio_force:.2f}) | {bpp:.0f} | {vpp:.0f} | {rss / 1e6:.0f} |")
-    for (meth, name), runs in sorted(groups.items()):
-        t2.append(f"| {meth} | {name} | " + " | ".join(f"{med(r['phase_time_s'].get(p, 0.0) for r in runs):.3f}"
-                                                   for p in phase_cols) + " |")
-    with open(pcsv_path, "w") as f:
-        f.write(pheader + "\n" + "\n".join(prow) + "\n")
-    ptable = [stamp, "",
-              "| material | particles | steps | runs | particle-steps/s | us per particle-step (phase 6) | "
-              "us per particle-step, step phases 1-9 | FE us per node-step, step phases 1-9 | "
-              "particle / FE per node, phases 1-9 (force phase only) | bytes per particle (solver) | "
-              "distributed vectors, bytes per particle | peak RSS (MB) |",
-              "|---" * 12 + "|"] + t1 + [
-              "", "Time per phase (s, medians), both methods:", "",
-              "| method | material | " + " | ".join(phase_cols) + " |", "|---" * (2 + len(phase_cols)) + "|"] + t2
-    if "<!-- PARTICLE BENCH BEGIN -->" not in text:
-        text += "\n<!-- PARTICLE BENCH BEGIN -->\n<!-- PARTICLE BENCH END -->\n"
-    text = re.sub(r"<!-- PARTICLE BENCH BEGIN -->.*<!-- PARTICLE BENCH END -->",
-                  "<!-- PARTICLE BENCH BEGIN -->\n" + "\n".join(ptable) + "\n<!-- PARTICLE BENCH END -->", text,
-                  flags=re.S)
-    print("\n".join(ptable))
+if "<!-- BENCH BEGIN -->" not in text:
+    text += "\n<!-- BENCH BEGIN -->\n<!-- BENCH END -->\n"
+text = re.sub(r"<!-- BENCH BEGIN -->.*<!-- BENCH END -->",
+              lambda _: "<!-- BENCH BEGIN -->\n" + "\n".join(t) + "\n<!-- BENCH END -->", text, flags=re.S)
 open(md_path, "w").write(text)
+print("\n".join(t))

@@ -211,6 +211,14 @@ namespace shard::mesh
         prm.add_parameter("body names", body_names_text_,
                           "Comma-separated names of the bodies; each has a subsection of its own. "
                           "Names use letters, digits, '_' and '-'.");
+        prm.add_parameter("particle weight", particle_weight_,
+                          "Cost of one particle in units of one element for the partition over MPI ranks: "
+                          "with particles at set-up and more than one rank, the cells are repartitioned with "
+                          "the weight 1 per element and this value per particle (a converted cell carries "
+                          "the share 1/n of each of its nodes, n the number of converted cells at the node). "
+                          "0 keeps the partition by cell count. doc/performance.md, MPI scaling. Unit: 1. "
+                          "Range: >= 0.",
+                          Patterns::Double(0));
         added = true;
       }
     body_names_ = base::split(body_names_text_, ',');
@@ -431,7 +439,12 @@ namespace shard::mesh
       }
     triangulation_.clear();
     triangulation_.create_triangulation(vertices, cells, faces);
+    distribute();
+  }
 
+  void
+  Discretization::distribute()
+  {
     dof_handler_.distribute_dofs(fe_);
     IndexSet relevant;
     DoFTools::extract_locally_relevant_dofs(dof_handler_, relevant);
@@ -451,6 +464,42 @@ namespace shard::mesh
                 reference_.local_element(partitioner_->global_to_local(dof)) = cell->vertex(v)[c];
               }
           }
+  }
+
+  double
+  Discretization::repartition(const std::vector<bool> &converted_cells)
+  {
+    if (particle_weight_ == 0 || Utilities::MPI::n_mpi_processes(comm_) == 1)
+      return 0;
+    // Converted cells at each vertex (owned and ghost cells see all cells at their vertices).
+    std::vector<unsigned int> n_converted(triangulation_.n_vertices(), 0);
+    for (const auto &cell : triangulation_.active_cell_iterators())
+      if (!cell->is_artificial() && converted_cells[cell->active_cell_index()])
+        for (const unsigned int v : cell->vertex_indices())
+          ++n_converted[cell->vertex_index(v)];
+    // Work of a cell in units of 1/1000 element: an element, or the shares of its particles.
+    const auto work = [&](const Triangulation<3>::cell_iterator &cell) {
+      if (!cell->is_active() || !converted_cells[cell->active_cell_index()])
+        return 1000.;
+      double particles = 0;
+      for (const unsigned int v : cell->vertex_indices())
+        particles += 1. / n_converted[cell->vertex_index(v)];
+      return 1000. * particle_weight_ * particles;
+    };
+    double owned_work = 0;
+    for (const auto &cell : triangulation_.active_cell_iterators())
+      if (cell->is_locally_owned())
+        owned_work += work(cell) / 1000.;
+    const double before = Utilities::MPI::max(owned_work, comm_) /
+                          (Utilities::MPI::sum(owned_work, comm_) / Utilities::MPI::n_mpi_processes(comm_));
+    const auto connection = triangulation_.signals.weight.connect(
+      [&](const Triangulation<3>::cell_iterator &cell, const Triangulation<3>::CellStatus) -> unsigned int {
+        return std::max(1u, static_cast<unsigned int>(std::lround(work(cell))));
+      });
+    triangulation_.repartition();
+    connection.disconnect();
+    distribute();
+    return before;
   }
 
   std::vector<unsigned int>

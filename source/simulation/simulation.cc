@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include <sys/resource.h>
+#include <ctime>
 
 namespace shard
 {
@@ -29,7 +30,22 @@ namespace shard
                                          "4 topology",     "5 FE force",   "6 particle force",
                                          "7 loads",        "8 accumulate", "9 kick",    "10 record"};
 
-    /// Adds the wall time of a scope to one phase.
+    /// CPU time of the calling thread (s).
+    double
+    thread_cpu_time()
+    {
+      timespec t{};
+      clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+      return t.tv_sec + 1e-9 * t.tv_nsec;
+    }
+
+    /// CPU time of this rank's main thread per phase (phase_cpu_time_by_rank_s of summary.json;
+    /// one Simulation per process runs at a time, reset at the start of Simulation::run()). On a
+    /// shared machine it shows the work of a phase without the time the rank was descheduled
+    /// (doc/performance.md, MPI scaling).
+    std::array<double, 11> phase_cpu_time{};
+
+    /// Adds the wall time of a scope to one phase (and its CPU time to phase_cpu_time).
     class PhaseTimer
     {
     public:
@@ -37,16 +53,19 @@ namespace shard
         : times_(times)
         , phase_(phase)
         , start_(Clock::now())
+        , cpu_start_(thread_cpu_time())
       {}
       ~PhaseTimer()
       {
         times_[phase_] += std::chrono::duration<double>(Clock::now() - start_).count();
+        phase_cpu_time[phase_] += thread_cpu_time() - cpu_start_;
       }
 
     private:
       std::array<double, 11> &times_;
       unsigned int            phase_;
       Clock::time_point       start_;
+      double                  cpu_start_;
     };
 
     std::string
@@ -135,6 +154,9 @@ namespace shard
     // Particles first: their two-hop stencil widens the ghost set, which changes local indices.
     conversion_.prepare(discretization_, particles_.body_names(), source_);
     check_rigid_bodies();
+    // Cells weighted by their particles (B - Mesh/particle weight); the flags follow the new partition.
+    if (conversion_.n_converted() > 0 && (imbalance_before_ = discretization_.repartition(conversion_.converted_cells())) > 0)
+      conversion_.prepare(discretization_, particles_.body_names(), source_);
     particles_.prepare(discretization_, conversion_.converted_cells(), conditions_.faces(), source_);
     hex_.prepare(discretization_, materials_, conversion_.converted_cells());
     spg_.prepare(discretization_, particles_, materials_);
@@ -166,7 +188,24 @@ namespace shard
               v_.local_element(j + i) = value[i];
           }
       }
+    measure_partition();
     phase_time_[0] += std::chrono::duration<double>(Clock::now() - start).count();
+  }
+
+  void
+  Simulation::measure_partition()
+  {
+    rank_elements_  = Utilities::MPI::all_gather(comm_, double(hex_.n_local_elements()));
+    rank_particles_ = Utilities::MPI::all_gather(comm_, double(particles_.active() ? particles_.n_owned() : 0));
+    const double w  = discretization_.particle_weight() > 0 ? discretization_.particle_weight() : 1.8;
+    double       largest = 0, total = 0;
+    for (unsigned int r = 0; r < rank_elements_.size(); ++r)
+      {
+        const double work = rank_elements_[r] + w * rank_particles_[r];
+        largest           = std::max(largest, work);
+        total += work;
+      }
+    imbalance_ = total > 0 ? largest * rank_elements_.size() / total : 1;
   }
 
   RunResult
@@ -175,6 +214,7 @@ namespace shard
     const auto         start = Clock::now();
     const unsigned int rank  = Utilities::MPI::this_mpi_process(comm_);
     RunResult          result{"completed", "", 0};
+    phase_cpu_time.fill(0.);
 
     if (rank == 0)
       {
@@ -188,6 +228,20 @@ namespace shard
         std::ofstream used(output_.directory() + "/parameters.prm");
         prm_.print_parameters(used, ParameterHandler::ShortPRM | ParameterHandler::KeepDeclarationOrder);
         materials_.write_resolved_parameters(output_.directory() + "/generated_parameters.prm");
+      }
+
+    if (rank == 0 && rank_elements_.size() > 1 && particles_.active())
+      {
+        std::fprintf(stderr, "partition: elements per rank");
+        for (const double n : rank_elements_)
+          std::fprintf(stderr, " %.0f", n);
+        std::fprintf(stderr, ", particles per rank");
+        for (const double n : rank_particles_)
+          std::fprintf(stderr, " %.0f", n);
+        std::fprintf(stderr, "; work imbalance (max/mean) %.3f", imbalance_);
+        if (imbalance_before_ > 0)
+          std::fprintf(stderr, " (cell-count partition: %.3f)", imbalance_before_);
+        std::fprintf(stderr, "\n");
       }
 
     // Initial state: kinetic energy of the input, then the kinematic conditions at t = 0.
@@ -860,6 +914,10 @@ namespace shard
     for (const auto *vec : {&d_, &v_, &v_now_, &f_, &f_ext_, &mass_, &d_phys_})
       memory[1] += vec->memory_consumption();
     Utilities::MPI::sum(ArrayView<const double>(memory, 2), comm_, ArrayView<double>(memory, 2));
+    const double element_bytes = Utilities::MPI::sum(double(hex_.memory_consumption()), comm_);
+    const double n_hexes       = Utilities::MPI::sum(double(hex_.n_local_elements()), comm_);
+    const auto   rank_times    = Utilities::MPI::all_gather(comm_, std::vector<double>(phase_time_.begin(), phase_time_.end()));
+    const auto   rank_cpu      = Utilities::MPI::all_gather(comm_, std::vector<double>(phase_cpu_time.begin(), phase_cpu_time.end()));
     rusage usage{};
     getrusage(RUSAGE_SELF, &usage);
     const double peak_rss = Utilities::MPI::max(1024. * usage.ru_maxrss, comm_);
@@ -911,7 +969,27 @@ namespace shard
     j << "  \"n_dofs\": " << d_.size() << ",\n";
     j << "  \"vector_bytes\": " << number(memory[1]) << ",\n";
     j << "  \"vector_bytes_per_dof\": " << number(d_.size() > 0 ? memory[1] / d_.size() : 0) << ",\n";
+    j << "  \"element_bytes\": " << number(element_bytes) << ",\n";
+    j << "  \"bytes_per_element\": " << number(n_hexes > 0 ? element_bytes / n_hexes : 0) << ",\n";
     j << "  \"peak_rss_bytes\": " << number(peak_rss) << ",\n";
+    const auto list = [&](const std::vector<double> &x) {
+      std::string out;
+      for (unsigned int r = 0; r < x.size(); ++r)
+        out += (r ? ", " : "") + number(x[r]);
+      return "[" + out + "]";
+    };
+    j << "  \"partition\": {\"particle_weight\": " << number(discretization_.particle_weight())
+      << ", \"elements_per_rank\": " << list(rank_elements_) << ", \"particles_per_rank\": " << list(rank_particles_)
+      << ", \"work_imbalance\": " << number(imbalance_) << ", \"work_imbalance_cell_count\": "
+      << number(imbalance_before_) << "},\n";
+    j << "  \"phase_time_by_rank_s\": [";
+    for (unsigned int r = 0; r < rank_times.size(); ++r)
+      j << (r ? ", " : "") << list(rank_times[r]);
+    j << "],\n";
+    j << "  \"phase_cpu_time_by_rank_s\": [";
+    for (unsigned int r = 0; r < rank_cpu.size(); ++r)
+      j << (r ? ", " : "") << list(rank_cpu[r]);
+    j << "],\n";
     j << "  \"phase_time_s\": {";
     for (unsigned int p = 0; p < 11; ++p)
       j << (p ? ", " : "") << "\"" << phase_names[p] << "\": " << number(max_time[p]);

@@ -175,6 +175,22 @@ namespace shard::fe
       return *groups_[group_of_[e]].material;
     }
 
+    /**
+     * @brief Bytes this object keeps on this rank: the per-element arrays and the history of
+     * every material group (allocated capacities).
+     */
+    std::size_t
+    memory_consumption() const
+    {
+      std::size_t bytes = sizeof(*this);
+      const auto  add   = [&](const auto &v) { bytes += v.capacity() * sizeof(v[0]); };
+      add(nodes_), add(cell_index_), add(body_), add(element_of_cell_), add(group_of_), add(volume0_);
+      add(element_dt_), add(stress_), add(q_), add(hourglass_);
+      for (const auto &g : groups_)
+        add(g.state), bytes += sizeof(g);
+      return bytes;
+    }
+
   private:
     struct Group
     {

@@ -141,6 +141,27 @@ namespace shard::mesh
     void
     prepare(const base::PrmSource &source);
 
+    /**
+     * @brief Repartitions the cells over the ranks by work: 1 per element, `particle weight`
+     * per particle, a converted cell (@p converted_cells, by active cell index) carrying 1/n of
+     * each of its nodes (n = converted cells at the node), and rebuilds DoFs, partitioner and
+     * reference positions. Nothing is done on one rank or with `particle weight` = 0. Call it
+     * before any component stores local indices; cell flags by active cell index stay valid only
+     * on cells that were and are not artificial (recompute them).
+     * @return the imbalance (largest over mean owned work) of the partition before, or 0 if
+     * nothing was done.
+     * @note Collective.
+     */
+    double
+    repartition(const std::vector<bool> &converted_cells);
+
+    /// `B - Mesh/particle weight`: cost of a particle in units of an element.
+    double
+    particle_weight() const
+    {
+      return particle_weight_;
+    }
+
     /// The bodies in input order (body index = cell material id).
     const std::vector<BodyParameters> &
     bodies() const
@@ -231,9 +252,14 @@ namespace shard::mesh
     add_ghost_dofs(const dealii::IndexSet &extra);
 
   private:
+    /// DoFs, partitioner and reference positions of the current triangulation.
+    void
+    distribute();
+
     MPI_Comm                                                comm_;
     std::vector<std::string>                                body_names_ = {"body"};
     std::string                                             body_names_text_ = "body";
+    double                                                  particle_weight_ = 1.8;
     std::vector<BodyParameters>                             bodies_;
     std::map<std::string, std::unique_ptr<BodyParameters>> declared_;
     dealii::parallel::distributed::Triangulation<3>         triangulation_;

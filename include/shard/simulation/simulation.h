@@ -143,6 +143,16 @@ namespace shard
     /// sums over ranks after the run, for the per-step rates.
     double                element_steps_ = 0, particle_steps_ = 0;
     std::array<double, 2> work_steps_{};
+    /// Partition (doc/performance.md, MPI scaling): owned elements and particles per rank at
+    /// set-up, the work imbalance max/mean of (elements + particle weight x particles) after
+    /// the weighted repartition, and the predicted imbalance of the cell-count partition
+    /// before it (0: not repartitioned).
+    std::vector<double> rank_elements_, rank_particles_;
+    double              imbalance_ = 1, imbalance_before_ = 0;
+
+    /// Gathers rank_elements_, rank_particles_ and imbalance_ (collective).
+    void
+    measure_partition();
 
     void
     record();
