@@ -110,6 +110,20 @@ namespace shard::time
          const mesh::Vector &mass, const mesh::Vector &d, bc::BoundaryConditions &conditions, mesh::Vector &v,
          mesh::Vector &v_now, LocalBalance &balance);
 
+    /// The held step (s): the only state the integrator carries from step to step (checkpoint).
+    double
+    held_dt() const
+    {
+      return held_dt_;
+    }
+
+    /// Restores the held step of a checkpoint.
+    void
+    set_held_dt(const double dt)
+    {
+      held_dt_ = dt;
+    }
+
   private:
     double       end_time_           = 1e-4;
     double       safety_factor_      = 0.9;
