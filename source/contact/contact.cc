@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/base/binary_archive.h>
 #include <shard/contact/contact.h>
 
 #include <deal.II/base/mpi.h>
@@ -985,5 +986,190 @@ namespace shard::contact
       friction_energy_ += friction_power * dt;
     result.stable_dt = stable_dt_;
     return result;
+  }
+
+  void
+  Contact::save(base::BinaryWriter &out) const
+  {
+    out.put(std::string("contact"));
+    out.put(static_cast<std::uint64_t>(nodes_.size()));
+    out.put(force_);
+    out.put(force_old_);
+    out.put(x_old_);
+    out.put(x_build_);
+    out.put(reach_);
+    out.put(seen_broken_);
+    out.put(seen_free_);
+    out.put(free_node_);
+    out.put(broken_partners_);
+    out.put(candidates_);
+    out.put(static_cast<std::uint64_t>(dormant_.size()));
+    for (const auto &d : dormant_)
+      {
+        out.put(d.pairs);
+        out.put(d.woken);
+        out.put(d.offsets);
+        out.put(d.of_node);
+      }
+    out.put(offset_);
+    out.put(entry_depth_);
+    out.put(previous_slaves_);
+    out.put(best_);
+    out.put(last_build_);
+    out.put(built_);
+    out.put(n_rebuilds_);
+    out.put(energy_);
+    out.put(friction_energy_);
+    out.put(wall_force_);
+  }
+
+  void
+  Contact::load(base::BinaryReader &in)
+  {
+    in.expect("contact");
+    if (in.get<std::uint64_t>() != nodes_.size())
+      throw std::runtime_error("the contact nodes of the checkpoint differ from this scene's");
+    in.get(force_);
+    in.get(force_old_);
+    in.get(x_old_);
+    in.get(x_build_);
+    in.get(reach_);
+    in.get(seen_broken_);
+    in.get(seen_free_);
+    in.get(free_node_);
+    in.get(broken_partners_);
+    in.get(candidates_);
+    dormant_.resize(in.get<std::uint64_t>());
+    for (auto &d : dormant_)
+      {
+        in.get(d.pairs);
+        in.get(d.woken);
+        in.get(d.offsets);
+        in.get(d.of_node);
+      }
+    in.get(offset_);
+    in.get(entry_depth_);
+    in.get(previous_slaves_);
+    in.get(best_);
+    in.get(last_build_);
+    in.get(built_);
+    in.get(n_rebuilds_);
+    in.get(energy_);
+    in.get(friction_energy_);
+    in.get(wall_force_);
+    // The plane cache is per step and is filled again.
+    plane_stamp_.clear();
+    planes_.clear();
+  }
+
+  Contact::PortableState
+  Contact::portable_state(const std::function<unsigned long long(unsigned long long)> &key_of_node) const
+  {
+    PortableState p;
+    for (const auto &n : nodes_)
+      p.keys.push_back(key_of_node(n.dof / 3));
+    p.force       = force_;
+    p.entry_depth = entry_depth_;
+    for (const auto &slaves : previous_slaves_)
+      {
+        p.previous_slaves.emplace_back();
+        for (const unsigned int i : slaves)
+          p.previous_slaves.back().push_back(p.keys[i]);
+      }
+    for (unsigned int s = 0; s < interactions_.size(); ++s)
+      {
+        p.pairs.emplace_back();
+        p.offsets.emplace_back();
+        if (interactions_[s].type != Type::particles)
+          continue;
+        for (std::size_t q = 0; q < candidates_[s].size() && q < offset_[s].size(); ++q)
+          if (offset_[s][q] >= 0)
+            {
+              p.pairs.back().emplace_back(p.keys[candidates_[s][q][0]], p.keys[candidates_[s][q][1]]);
+              p.offsets.back().push_back(offset_[s][q]);
+            }
+      }
+    for (std::size_t k = 0; k < owned_local_dof_.size() && 3 * k < x_old_.size(); ++k)
+      {
+        p.owned_keys.push_back(p.keys[owned_begin_ + k]);
+        for (unsigned int c = 0; c < 3; ++c)
+          p.x_old.push_back(x_old_[3 * k + c]);
+      }
+    p.last_build      = last_build_;
+    p.n_rebuilds      = n_rebuilds_;
+    p.energy          = energy_;
+    p.friction_energy = friction_energy_;
+    return p;
+  }
+
+  void
+  Contact::restore_portable(const std::vector<PortableState>                              &states,
+                            const std::function<unsigned long long(unsigned long long)> &node_of_key,
+                            const double                                                 energy)
+  {
+    if (states.empty())
+      return;
+    std::unordered_map<unsigned long long, unsigned int> index_of_dof;
+    for (unsigned int i = 0; i < nodes_.size(); ++i)
+      index_of_dof.emplace(nodes_[i].dof, i);
+    const auto index = [&](const unsigned long long key) {
+      const auto it = index_of_dof.find(3 * node_of_key(key));
+      if (it == index_of_dof.end())
+        throw std::runtime_error("contact node " + std::to_string(key) + " of the checkpoint is not a contact node");
+      return it->second;
+    };
+    const auto &first = states.front();
+    if (first.keys.size() != nodes_.size() || first.entry_depth.size() != interactions_.size())
+      throw std::runtime_error("the contact nodes of the checkpoint differ from this scene's");
+    for (std::size_t k = 0; k < first.keys.size(); ++k)
+      {
+        const unsigned int i = index(first.keys[k]);
+        for (unsigned int c = 0; c < 3; ++c)
+          force_[3 * i + c] = first.force[3 * k + c];
+        for (unsigned int s = 0; s < interactions_.size(); ++s)
+          entry_depth_[s][i] = first.entry_depth[s][k];
+      }
+    for (unsigned int s = 0; s < interactions_.size(); ++s)
+      {
+        previous_slaves_[s].clear();
+        for (const auto key : first.previous_slaves[s])
+          previous_slaves_[s].push_back(index(key));
+        // Both orientations: the next build keeps an offset by the pair as it finds it.
+        candidates_[s].clear();
+        offset_[s].clear();
+        for (std::size_t q = 0; q < first.pairs[s].size(); ++q)
+          {
+            const unsigned int a = index(first.pairs[s][q].first), b = index(first.pairs[s][q].second);
+            candidates_[s].push_back({{a, b}});
+            candidates_[s].push_back({{b, a}});
+            offset_[s].push_back(first.offsets[s][q]);
+            offset_[s].push_back(first.offsets[s][q]);
+          }
+      }
+    std::unordered_map<unsigned long long, const double *> x_of_key;
+    for (const auto &st : states)
+      for (std::size_t k = 0; k < st.owned_keys.size(); ++k)
+        x_of_key[st.owned_keys[k]] = &st.x_old[3 * k];
+    std::unordered_map<unsigned long long, unsigned long long> key_of_node;
+    for (const auto key : first.keys)
+      key_of_node.emplace(node_of_key(key), key);
+    x_old_.assign(3 * owned_local_dof_.size(), 0.);
+    for (std::size_t k = 0; k < owned_local_dof_.size(); ++k)
+      {
+        const auto it = x_of_key.find(key_of_node.at(nodes_[owned_begin_ + k].dof / 3));
+        if (it == x_of_key.end())
+          {
+            x_old_.clear(); // no contact work for one step
+            break;
+          }
+        std::copy(it->second, it->second + 3, &x_old_[3 * k]);
+      }
+    built_           = false;
+    last_build_      = first.last_build;
+    n_rebuilds_      = first.n_rebuilds;
+    energy_          = energy;
+    friction_energy_ = Utilities::MPI::this_mpi_process(comm_) == 0 ? first.friction_energy : 0.;
+    plane_stamp_.clear();
+    planes_.clear();
   }
 } // namespace shard::contact

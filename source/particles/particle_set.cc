@@ -91,6 +91,8 @@ namespace shard::particles
   {
     MPI_Comm           comm = discretization.communicator();
     const unsigned int rank = Utilities::MPI::this_mpi_process(comm);
+    prepared_broken_        = broken_;
+    prepared_free_          = free_;
     rk_.support             = support_text_ == "sphere" ? Support::sphere : Support::box;
     body_names_             = base::split(body_names_text_, ',');
     const auto &bodies      = discretization.bodies();

@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/base/binary_archive.h>
 #include <shard/base/function.h>
 #include <shard/base/version.h>
 #include <shard/fe/hex_kernel.h>
@@ -10,9 +11,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
+#include <unordered_map>
 
 #include <sys/resource.h>
 #include <ctime>
@@ -107,7 +110,7 @@ namespace shard
     source_ = source;
     base::read_parameters(prm_,
                           {this, &discretization_, &materials_, &particles_, &bonds_, &conversion_, &contact_, &hex_,
-                           &spg_, &conditions_, &integrator_, &output_, &quantities_},
+                           &spg_, &conditions_, &integrator_, &output_, &quantities_, &checkpoint_},
                           source_);
   }
 
@@ -155,8 +158,12 @@ namespace shard
     conversion_.prepare(discretization_, particles_.body_names(), source_);
     check_rigid_bodies();
     // Cells weighted by their particles (B - Mesh/particle weight); the flags follow the new partition.
+    // (Also on a restart: the partition of the set-up, as in the run that wrote the checkpoint.)
     if (conversion_.n_converted() > 0 && (imbalance_before_ = discretization_.repartition(conversion_.converted_cells())) > 0)
       conversion_.prepare(discretization_, particles_.body_names(), source_);
+    checkpoint_.prepare(discretization_, output_.directory(), fingerprint(), source_);
+    if (checkpoint_.restarting())
+      restore_topology();
     particles_.prepare(discretization_, conversion_.converted_cells(), conditions_.faces(), source_);
     hex_.prepare(discretization_, materials_, conversion_.converted_cells());
     spg_.prepare(discretization_, particles_, materials_);
@@ -189,6 +196,8 @@ namespace shard
           }
       }
     measure_partition();
+    if (checkpoint_.restarting())
+      restore_state();
     phase_time_[0] += std::chrono::duration<double>(Clock::now() - start).count();
   }
 
@@ -216,7 +225,13 @@ namespace shard
     RunResult          result{"completed", "", 0};
     phase_cpu_time.fill(0.);
 
-    if (rank == 0)
+    const bool restarted = step_ > 0;
+    if (rank == 0 && restarted)
+      {
+        // Rows up to the checkpoint are kept (cut back in restore_state()); the run appends.
+        history_.open(output_.directory() + "/history.csv", std::ios::app);
+      }
+    if (rank == 0 && !restarted)
       {
         history_.open(output_.directory() + "/history.csv");
         history_ << "time,step,dt,kinetic_energy,internal_energy,hourglass_energy,external_work,boundary_work,"
@@ -225,6 +240,9 @@ namespace shard
         for (const auto &name : quantities_.names())
           history_ << "," << name;
         history_ << "\n";
+      }
+    if (rank == 0)
+      {
         std::ofstream used(output_.directory() + "/parameters.prm");
         prm_.print_parameters(used, ParameterHandler::ShortPRM | ParameterHandler::KeepDeclarationOrder);
         materials_.write_resolved_parameters(output_.directory() + "/generated_parameters.prm");
@@ -244,36 +262,38 @@ namespace shard
         std::fprintf(stderr, "\n");
       }
 
-    // Initial state: kinetic energy of the input, then the kinematic conditions at t = 0.
-    {
-      double ke = 0;
-      for (unsigned int i = 0; i < v_.locally_owned_size(); ++i)
-        ke += 0.5 * mass_.local_element(i) * v_.local_element(i) * v_.local_element(i);
-      initial_energy_ = Utilities::MPI::sum(ke, comm_);
-      initial_max_speed_ = fastest_node(v_).speed;
-      balance_.boundary_work += conditions_.apply_initial(d_, mass_, v_);
-    }
-    stable_dt_       = std::min(hex_.initial_stable_dt(), spg_.initial_stable_dt());
-    first_stable_dt_ = Utilities::MPI::min(stable_dt_, comm_);
-    if (!(first_stable_dt_ < 1e299) && !(integrator_.fixed_time_step() > 0))
-      source_.fail("J - Time integration/fixed time step", "0",
-                   "no element or particle limits the step (every body is rigid): set a fixed time step > 0. "
-                   "Unit: s.");
-    f_         = 0;
-    f_ext_     = 0;
-    conditions_.add_external_forces(0., f_ext_);
-    f_ += f_ext_;
-    dt_next_ = integrator_.next_dt(stable_dt_, 0.);
+    // Initial state: kinetic energy of the input, then the kinematic conditions at t = 0
+    // (a restart has it from the checkpoint).
     integrator_.rigid_bodies().prepare(discretization_, materials_, mass_);
-    integrator_.kick(0., 0., dt_next_, f_, f_ext_, mass_, d_, conditions_, v_, v_now_, balance_);
-    d_.update_ghost_values();
-    v_now_.update_ghost_values();
-    record();
-    output_.write(0., physical_displacement(), v_now_);
-    write_fragments();
+    if (!restarted)
+      {
+        double ke = 0;
+        for (unsigned int i = 0; i < v_.locally_owned_size(); ++i)
+          ke += 0.5 * mass_.local_element(i) * v_.local_element(i) * v_.local_element(i);
+        initial_energy_    = Utilities::MPI::sum(ke, comm_);
+        initial_max_speed_ = fastest_node(v_).speed;
+        balance_.boundary_work += conditions_.apply_initial(d_, mass_, v_);
+        stable_dt_       = std::min(hex_.initial_stable_dt(), spg_.initial_stable_dt());
+        first_stable_dt_ = Utilities::MPI::min(stable_dt_, comm_);
+        if (!(first_stable_dt_ < 1e299) && !(integrator_.fixed_time_step() > 0))
+          source_.fail("J - Time integration/fixed time step", "0",
+                       "no element or particle limits the step (every body is rigid): set a fixed time step > 0. "
+                       "Unit: s.");
+        f_               = 0;
+        f_ext_           = 0;
+        conditions_.add_external_forces(0., f_ext_);
+        f_ += f_ext_;
+        dt_next_ = integrator_.next_dt(stable_dt_, 0.);
+        integrator_.kick(0., 0., dt_next_, f_, f_ext_, mass_, d_, conditions_, v_, v_now_, balance_);
+        d_.update_ghost_values();
+        v_now_.update_ghost_values();
+        record();
+        output_.write(0., physical_displacement(), v_now_);
+        write_fragments();
+        next_output_ = output_.interval();
+      }
 
     auto         last_progress   = Clock::now();
-    double       next_output     = output_.interval();
     const double end             = integrator_.end_time();
     bool         stop            = false;
     try
@@ -437,14 +457,14 @@ namespace shard
               PhaseTimer timer(phase_time_, 10);
               if (step_ % output_.history_interval() == 0 || last)
                 record();
-              if (last || (output_.interval() > 0 && t_ >= next_output * (1 - 1e-12)))
+              if (last || (output_.interval() > 0 && t_ >= next_output_ * (1 - 1e-12)))
                 {
                   d_.update_ghost_values();
                   v_now_.update_ghost_values();
                   output_.write(t_, physical_displacement(), v_now_);
                   write_fragments();
-                  while (next_output <= t_ * (1 + 1e-12) && output_.interval() > 0)
-                    next_output += output_.interval();
+                  while (next_output_ <= t_ * (1 + 1e-12) && output_.interval() > 0)
+                    next_output_ += output_.interval();
                 }
               const double since = std::chrono::duration<double>(Clock::now() - last_progress).count();
               if (rank == 0 && output_.progress_interval() > 0 && (since >= output_.progress_interval() || last))
@@ -458,6 +478,9 @@ namespace shard
                                step_, t_, end, 100. * t_ / end, dt_, energy_error_, eta);
                   history_.flush();
                 }
+              // Checkpoint: after the record, so that the tables it cuts back to hold this step.
+              if (checkpoint_.is_due(step_))
+                write_checkpoint();
               if (integrator_.max_steps() > 0 && step_ >= integrator_.max_steps() && t_ < end * (1 - 1e-12))
                 result.status = "max steps reached";
               stop = last;
@@ -1006,5 +1029,497 @@ namespace shard
       << "/parameters.prm\"}\n";
     j << "}\n";
     base::write_file_atomically(output_.directory() + "/summary.json", j.str());
+  }
+
+  namespace
+  {
+    using Bond = particles::ParticleSet::Bond;
+    using Keys = std::vector<unsigned long long>;
+
+    /// The part of a checkpoint that is the same on every rank (read from rank 0's file).
+    struct SavedGlobal
+    {
+      unsigned int                                               step = 0;
+      double                                                     t = 0, dt = 0, dt_next = 0, stable_dt = 0;
+      double                                                     conversion_energy = 0, reference_energy = 0;
+      double                                                     initial_energy = 0, energy_error = 0;
+      double                                                     max_energy_error = 0, first_stable_dt = 0;
+      double                                                     initial_max_speed = 0, next_output = 0;
+      double                                                     held_dt = 0, last_fragments_time = -1;
+      std::vector<double>                                        q_final, q_min, q_max;
+      std::array<std::vector<std::pair<double, std::string>>, 2> records;
+      unsigned char                                              fragments_started = 0;
+      unsigned long long                                         history_bytes = 0, fragments_bytes = 0;
+      std::vector<unsigned int>                                  converted;
+      unsigned int                                               n_events = 0, n_rebuilds = 0;
+      std::vector<std::pair<unsigned long long, unsigned long long>> bonds_at_prepare, bonds;
+      Keys                                                       free_at_prepare, free;
+      unsigned long long                                         n_broken = 0, n_free = 0;
+    };
+
+    /// One rank's share: its scalars and its owned nodes, elements and particles.
+    struct SavedRank
+    {
+      Keys                      ghosts;
+      std::vector<double>       scalars;
+      double                    contact_energy = 0, friction_energy = 0;
+      Keys                      node_keys;
+      std::vector<double>       node_values; // d, v, v_now, f, f_ext: 15 per node
+      std::vector<unsigned int> cells;
+      Keys                      element_offsets, particle_keys, particle_offsets;
+      std::vector<double>       element_values, particle_values;
+      unsigned char             has_contact = 0;
+      std::vector<unsigned int> changed_rows; // ParticleSet::changed_rows(), local rows
+    };
+
+    /// One list of fields for writing and reading (@p io is put or get).
+    template <typename IO>
+    void
+    serialize(IO &&io, SavedGlobal &g)
+    {
+      io(g.step), io(g.t), io(g.dt), io(g.dt_next), io(g.stable_dt), io(g.conversion_energy);
+      io(g.reference_energy), io(g.initial_energy), io(g.energy_error), io(g.max_energy_error);
+      io(g.first_stable_dt), io(g.initial_max_speed), io(g.next_output), io(g.held_dt);
+      io(g.last_fragments_time), io(g.q_final), io(g.q_min), io(g.q_max), io(g.records);
+      io(g.fragments_started), io(g.history_bytes), io(g.fragments_bytes), io(g.converted), io(g.n_events);
+      io(g.n_rebuilds), io(g.bonds_at_prepare), io(g.bonds), io(g.free_at_prepare), io(g.free);
+      io(g.n_broken), io(g.n_free);
+    }
+
+    template <typename IO>
+    void
+    serialize(IO &&io, SavedRank &r)
+    {
+      io(r.ghosts), io(r.scalars), io(r.contact_energy), io(r.friction_energy), io(r.node_keys);
+      io(r.node_values), io(r.cells), io(r.element_offsets), io(r.element_values), io(r.particle_keys);
+      io(r.particle_offsets), io(r.particle_values), io(r.has_contact), io(r.changed_rows);
+    }
+
+    /// Reads header, global and rank part of one payload; @p reader stays after them.
+    void
+    read_payload(base::BinaryReader &reader, SavedGlobal &g, SavedRank &r)
+    {
+      reader.expect("shard state");
+      reader.get<unsigned int>();
+      reader.get<unsigned int>();
+      reader.expect("global");
+      serialize([&](auto &x) { reader.get(x); }, g);
+      reader.expect("rank");
+      serialize([&](auto &x) { reader.get(x); }, r);
+    }
+  } // namespace
+
+  std::string
+  Simulation::fingerprint() const
+  {
+    // The parameters as read, without the keys a restart may change.
+    std::ostringstream all;
+    prm_.print_parameters(all, ParameterHandler::ShortPRM | ParameterHandler::KeepDeclarationOrder);
+    std::istringstream in(all.str());
+    std::ostringstream out;
+    std::string        line, top;
+    int                depth = 0;
+    while (std::getline(in, line))
+      {
+        const auto first = line.find_first_not_of(' ');
+        if (first == std::string::npos)
+          continue;
+        const std::string l = line.substr(first);
+        if (l.rfind("subsection ", 0) == 0)
+          {
+            if (depth++ == 0)
+              top = l.substr(11);
+            continue;
+          }
+        if (l == "end")
+          {
+            --depth;
+            continue;
+          }
+        if (top == "K - Output" || top == "N - Checkpoint" || l.rfind("set end time", 0) == 0 ||
+            l.rfind("set max steps", 0) == 0 || l.rfind("set title", 0) == 0)
+          continue;
+        out << top << ": " << l << "\n";
+      }
+    out << "dofs " << discretization_.dof_handler().n_dofs() << " cells " << discretization_.n_elements() << "\n";
+    return out.str();
+  }
+
+  void
+  Simulation::write_checkpoint()
+  {
+    const unsigned int rank = Utilities::MPI::this_mpi_process(comm_);
+    const auto        &pt   = *discretization_.partitioner();
+    const auto key_bonds = [&](const std::vector<Bond> &bonds) {
+      std::vector<std::pair<unsigned long long, unsigned long long>> out;
+      for (const auto &[a, b] : bonds)
+        out.emplace_back(checkpoint_.key_of_node(a), checkpoint_.key_of_node(b));
+      return out;
+    };
+    const auto key_nodes = [&](const Keys &ids) {
+      Keys out;
+      for (const auto id : ids)
+        out.push_back(checkpoint_.key_of_node(id));
+      return out;
+    };
+
+    SavedGlobal g;
+    g.step = step_, g.t = t_, g.dt = dt_, g.dt_next = dt_next_, g.stable_dt = stable_dt_;
+    g.conversion_energy = conversion_energy_, g.reference_energy = reference_energy_;
+    g.initial_energy = initial_energy_, g.energy_error = energy_error_, g.max_energy_error = max_energy_error_;
+    g.first_stable_dt = first_stable_dt_, g.initial_max_speed = initial_max_speed_, g.next_output = next_output_;
+    g.held_dt = integrator_.held_dt(), g.last_fragments_time = last_fragments_time_;
+    g.q_final = q_final_, g.q_min = q_min_, g.q_max = q_max_, g.records = output_.records();
+    g.fragments_started = fragments_started_;
+    if (rank == 0)
+      {
+        history_.flush();
+        const std::string fragments = output_.directory() + "/fragments.csv";
+        g.history_bytes             = std::filesystem::file_size(output_.directory() + "/history.csv");
+        g.fragments_bytes = std::filesystem::exists(fragments) ? std::filesystem::file_size(fragments) : 0;
+      }
+    // Each rank knows the converted cells it holds; its owned ones are written (the union over
+    // the ranks is the converted set).
+    for (const auto &cell : discretization_.triangulation().active_cell_iterators())
+      if (cell->is_locally_owned() && conversion_.converted_cells()[cell->active_cell_index()])
+        g.converted.push_back(cell->active_cell_index());
+    g.n_events = conversion_.n_events(), g.n_rebuilds = contact_.n_rebuilds();
+    if (particles_.active())
+      {
+        g.bonds_at_prepare = key_bonds(particles_.bonds_at_prepare());
+        g.bonds            = key_bonds(particles_.broken_bonds());
+        g.free_at_prepare  = key_nodes(particles_.free_at_prepare());
+        g.free             = key_nodes(particles_.free_particles());
+      }
+    g.n_broken = bonds_.n_broken(), g.n_free = bonds_.n_free();
+
+    SavedRank r;
+    for (const auto i : pt.ghost_indices())
+      r.ghosts.push_back(i);
+    r.scalars = {internal_energy_,
+                 hourglass_energy_,
+                 stabilization_energy_,
+                 filter_work_,
+                 conversion_elastic_,
+                 bond_energy_,
+                 balance_.kinetic,
+                 balance_.momentum[0],
+                 balance_.momentum[1],
+                 balance_.momentum[2],
+                 balance_.external_work,
+                 balance_.boundary_work,
+                 balance_.pending_external,
+                 balance_.pending_boundary,
+                 element_steps_,
+                 particle_steps_,
+                 particle_dt_};
+    r.contact_energy = contact_.energy(), r.friction_energy = contact_.friction_energy();
+    for (unsigned int j = 0; j < pt.locally_owned_size(); j += 3)
+      {
+        r.node_keys.push_back(checkpoint_.key_of_local_dof(j));
+        for (const auto *vec : {&d_, &v_, &v_now_, &f_, &f_ext_})
+          for (unsigned int c = 0; c < 3; ++c)
+            r.node_values.push_back(vec->local_element(j + c));
+      }
+    r.element_offsets.push_back(0);
+    for (unsigned int e = 0; e < hex_.n_local_elements(); ++e)
+      {
+        r.cells.push_back(hex_.cell_index(e));
+        const auto values = hex_.checkpoint_values(e);
+        r.element_values.insert(r.element_values.end(), values.begin(), values.end());
+        r.element_offsets.push_back(r.element_values.size());
+      }
+    r.particle_offsets.push_back(0);
+    if (spg_.active())
+      for (const auto &[id, p] : spg_.save_state())
+        {
+          r.particle_keys.push_back(checkpoint_.key_of_node(id));
+          r.particle_values.insert(r.particle_values.end(), p.stress.begin(), p.stress.end());
+          r.particle_values.push_back(p.q);
+          r.particle_values.insert(r.particle_values.end(), p.state.begin(), p.state.end());
+          r.particle_offsets.push_back(r.particle_values.size());
+        }
+    r.has_contact = contact_.active();
+    if (particles_.active())
+      r.changed_rows = particles_.changed_rows();
+
+    base::BinaryWriter w;
+    w.put(std::string("shard state"));
+    w.put(Utilities::MPI::n_mpi_processes(comm_));
+    w.put(rank);
+    w.put(std::string("global"));
+    serialize([&](auto &x) { w.put(x); }, g);
+    w.put(std::string("rank"));
+    serialize([&](auto &x) { w.put(x); }, r);
+    if (r.has_contact)
+      {
+        // Exact at the same partition; portable (by node key) for another rank count.
+        base::BinaryWriter exact;
+        contact_.save(exact);
+        w.put(exact.str());
+        auto portable = contact_.portable_state([&](const unsigned long long n) { return checkpoint_.key_of_node(n); });
+        portable.serialize([&](auto &x) { w.put(x); });
+      }
+    w.put(std::string("end"));
+    checkpoint_.write(step_, t_, w.str());
+  }
+
+  void
+  Simulation::restore_topology()
+  {
+    const std::string         key = "N - Checkpoint/restart from";
+    SavedGlobal               g;
+    SavedRank                 r;
+    std::vector<unsigned int> converted;
+    try
+      {
+        const unsigned int own = checkpoint_.same_rank_count() ? Utilities::MPI::this_mpi_process(comm_) : 0;
+        for (unsigned int q = 0; q < checkpoint_.restart_ranks(); ++q)
+          {
+            base::BinaryReader reader(checkpoint_.payload(q));
+            SavedGlobal        gq;
+            SavedRank          rq;
+            read_payload(reader, gq, rq);
+            converted.insert(converted.end(), gq.converted.begin(), gq.converted.end());
+            if (q == 0)
+              g = std::move(gq);
+            if (q == own)
+              r = std::move(rq);
+          }
+        std::sort(converted.begin(), converted.end());
+        converted.erase(std::unique(converted.begin(), converted.end()), converted.end());
+      }
+    catch (const std::exception &e)
+      {
+        source_.fail(key, checkpoint_.restart_manifest(), std::string("cannot read the checkpoint: ") + e.what());
+      }
+    const auto node_bonds = [&](const std::vector<std::pair<unsigned long long, unsigned long long>> &keys) {
+      std::vector<Bond> out;
+      for (const auto &[a, b] : keys)
+        out.emplace_back(checkpoint_.node_of_key(a), checkpoint_.node_of_key(b));
+      for (auto &b : out)
+        if (b.first > b.second)
+          std::swap(b.first, b.second);
+      return out;
+    };
+    const auto nodes = [&](const Keys &keys) {
+      Keys out;
+      for (const auto k : keys)
+        out.push_back(checkpoint_.node_of_key(k));
+      return out;
+    };
+    for (const auto c : converted)
+      if (c >= conversion_.converted_cells().size())
+        source_.fail(key, checkpoint_.restart_manifest(), "the checkpoint names a cell this mesh does not have.");
+    conversion_.restore(converted, g.n_events);
+    particles_.restore_broken(node_bonds(g.bonds_at_prepare), nodes(g.free_at_prepare));
+    // Rows rebuilt for broken bonds use the failure condition limit, which the run had set
+    // (BondFailure::prepare) before every rebuild of the particle set after the first.
+    particles_.set_broken_condition_limit(bonds_.condition_limit());
+    // The same ghost set as the run that wrote the checkpoint (it only grows at conversions),
+    // so that local indices and the order of every sum are the same.
+    if (checkpoint_.same_rank_count())
+      {
+        IndexSet ghosts(discretization_.dof_handler().n_dofs());
+        ghosts.add_indices(r.ghosts.begin(), r.ghosts.end());
+        discretization_.add_ghost_dofs(ghosts);
+      }
+  }
+
+  void
+  Simulation::restore_state()
+  {
+    const std::string  key  = "N - Checkpoint/restart from";
+    const unsigned int rank = Utilities::MPI::this_mpi_process(comm_);
+    const bool         same = checkpoint_.same_rank_count();
+    std::string        error;
+    try
+      {
+        SavedGlobal                                 g;
+        std::vector<SavedRank>                      ranks(checkpoint_.restart_ranks());
+        std::vector<contact::Contact::PortableState> contact_states;
+        for (unsigned int q = 0; q < ranks.size(); ++q)
+          {
+            base::BinaryReader reader(checkpoint_.payload(q));
+            SavedGlobal        gq;
+            read_payload(reader, q == 0 ? g : gq, ranks[q]);
+            if (ranks[q].has_contact != contact_.active())
+              throw std::runtime_error("contact is on in one of the checkpoint and this scene, off in the other");
+            if (ranks[q].has_contact)
+              {
+                std::string exact;
+                reader.get(exact);
+                if (same && q == rank)
+                  {
+                    base::BinaryReader in(exact);
+                    contact_.load(in);
+                  }
+                contact_states.emplace_back();
+                contact_states.back().serialize([&](auto &x) { reader.get(x); });
+              }
+            reader.expect("end");
+          }
+
+        // Topology after the last rebuild: the bonds that broke since then.
+        if (particles_.active())
+          {
+            std::vector<Bond> bonds;
+            for (const auto &[a, b] : g.bonds)
+              bonds.emplace_back(checkpoint_.node_of_key(a), checkpoint_.node_of_key(b));
+            for (auto &b : bonds)
+              if (b.first > b.second)
+                std::swap(b.first, b.second);
+            Keys free;
+            for (const auto k : g.free)
+              free.push_back(checkpoint_.node_of_key(k));
+            particles_.break_bonds(bonds, free);
+            particles_.take_rebuilt_rows();
+            // The rows whose bond count the next breaking step looks at: as in the run at the
+            // same partition; at another, every row (as after a rebuild of the particle set).
+            if (same)
+              particles_.restore_changed_rows(ranks[rank].changed_rows);
+            bonds_.prepare(particles_, spg_, source_);
+            fragments_stale_ = true;
+          }
+        bonds_.restore_counts(g.n_broken, g.n_free);
+
+        // Nodes, elements and particles by key, from whichever rank wrote them.
+        std::unordered_map<unsigned long long, std::pair<unsigned int, std::size_t>> node_at, particle_at;
+        std::unordered_map<unsigned int, std::pair<unsigned int, std::size_t>>       element_at;
+        for (unsigned int q = 0; q < ranks.size(); ++q)
+          {
+            for (std::size_t k = 0; k < ranks[q].node_keys.size(); ++k)
+              node_at[ranks[q].node_keys[k]] = {q, k};
+            for (std::size_t k = 0; k < ranks[q].cells.size(); ++k)
+              element_at[ranks[q].cells[k]] = {q, k};
+            for (std::size_t k = 0; k < ranks[q].particle_keys.size(); ++k)
+              particle_at[ranks[q].particle_keys[k]] = {q, k};
+          }
+        const auto &pt = *discretization_.partitioner();
+        for (unsigned int j = 0; j < pt.locally_owned_size(); j += 3)
+          {
+            const auto it = node_at.find(checkpoint_.key_of_local_dof(j));
+            if (it == node_at.end())
+              throw std::runtime_error("node " + std::to_string(checkpoint_.key_of_local_dof(j)) + " is missing");
+            const double *x = &ranks[it->second.first].node_values[15 * it->second.second];
+            for (auto *vec : {&d_, &v_, &v_now_, &f_, &f_ext_})
+              for (unsigned int c = 0; c < 3; ++c, ++x)
+                vec->local_element(j + c) = *x;
+          }
+        for (unsigned int e = 0; e < hex_.n_local_elements(); ++e)
+          {
+            const auto it = element_at.find(hex_.cell_index(e));
+            if (it == element_at.end())
+              throw std::runtime_error("element of cell " + std::to_string(hex_.cell_index(e)) + " is missing");
+            const auto &s = ranks[it->second.first];
+            const auto  k = it->second.second;
+            if (!hex_.set_checkpoint_values(e, &s.element_values[s.element_offsets[k]],
+                                            s.element_offsets[k + 1] - s.element_offsets[k]))
+              throw std::runtime_error("element of cell " + std::to_string(hex_.cell_index(e)) +
+                                       " has another number of history values");
+          }
+        for (unsigned int i = 0; i < spg_.n_owned(); ++i)
+          {
+            const auto key_i = checkpoint_.key_of_local_dof(particles_.local_dof(i));
+            const auto it    = particle_at.find(key_i);
+            if (it == particle_at.end())
+              throw std::runtime_error("particle at node " + std::to_string(key_i) + " is missing");
+            const auto   &s = ranks[it->second.first];
+            const auto    k = it->second.second;
+            const double *x = &s.particle_values[s.particle_offsets[k]];
+            if (s.particle_offsets[k + 1] - s.particle_offsets[k] != 7 + spg_.material(i).n_state_slots())
+              throw std::runtime_error("particle at node " + std::to_string(key_i) +
+                                       " has another number of history values");
+            spg_.set_state(i, x, x + 7, x[6]);
+          }
+        d_.update_ghost_values();
+        v_.update_ghost_values();
+        v_now_.update_ghost_values();
+        const double stabilization = spg_.reset_deformation(d_);
+
+        // Scalars: this rank's own at the same rank count; at another the sums on rank 0.
+        std::vector<double> scalars = ranks[0].scalars;
+        double              contact_energy = ranks[0].contact_energy;
+        if (same)
+          scalars = ranks[rank].scalars;
+        else
+          {
+            for (unsigned int q = 1; q < ranks.size(); ++q)
+              {
+                for (unsigned int k = 0; k + 1 < scalars.size(); ++k)
+                  scalars[k] += ranks[q].scalars[k];
+                scalars.back() = std::min(scalars.back(), ranks[q].scalars.back());
+                contact_energy += ranks[q].contact_energy;
+              }
+            if (rank != 0)
+              {
+                for (unsigned int k = 0; k + 1 < scalars.size(); ++k)
+                  scalars[k] = 0;
+                contact_energy = 0;
+              }
+            if (contact_.active())
+              contact_.restore_portable(
+                contact_states, [&](const unsigned long long key) { return checkpoint_.node_of_key(key); },
+                contact_energy);
+          }
+        if (scalars.size() != 17)
+          throw std::runtime_error("wrong number of scalars");
+        internal_energy_ = scalars[0], hourglass_energy_ = scalars[1];
+        stabilization_energy_ = same ? scalars[2] : stabilization;
+        filter_work_ = scalars[3], conversion_elastic_ = scalars[4], bond_energy_ = scalars[5];
+        balance_.kinetic = scalars[6];
+        for (unsigned int c = 0; c < 3; ++c)
+          balance_.momentum[c] = scalars[7 + c];
+        balance_.external_work = scalars[10], balance_.boundary_work = scalars[11];
+        balance_.pending_external = scalars[12], balance_.pending_boundary = scalars[13];
+        element_steps_ = scalars[14], particle_steps_ = scalars[15], particle_dt_ = scalars[16];
+
+        step_ = g.step, t_ = g.t, dt_ = g.dt, dt_next_ = g.dt_next, stable_dt_ = g.stable_dt;
+        conversion_energy_ = g.conversion_energy, reference_energy_ = g.reference_energy;
+        initial_energy_ = g.initial_energy, energy_error_ = g.energy_error, max_energy_error_ = g.max_energy_error;
+        first_stable_dt_ = g.first_stable_dt, initial_max_speed_ = g.initial_max_speed;
+        next_output_ = g.next_output, last_fragments_time_ = g.last_fragments_time;
+        integrator_.set_held_dt(g.held_dt);
+        q_final_ = g.q_final, q_min_ = g.q_min, q_max_ = g.q_max;
+        output_.restore_records(g.records);
+        fragments_started_ = g.fragments_started;
+        history_bytes_ = g.history_bytes, fragments_bytes_ = g.fragments_bytes;
+        if (rank == 0)
+          truncate_tables();
+      }
+    catch (const std::exception &e)
+      {
+        error = e.what();
+      }
+    // Every rank fails together, with the first message.
+    for (const auto &m : Utilities::MPI::all_gather(comm_, error))
+      if (!m.empty())
+        source_.fail(key, checkpoint_.restart_manifest(), "cannot restart from the checkpoint: " + m);
+    if (rank == 0)
+      std::fprintf(stderr, "shard: restart from %s: step %u, t = %.6e s (written at %u ranks)\n",
+                   checkpoint_.restart_manifest().c_str(), step_, t_, checkpoint_.restart_ranks());
+    checkpoint_.release();
+  }
+
+  void
+  Simulation::truncate_tables() const
+  {
+    for (const auto &[name, bytes] : {std::make_pair(std::string("history.csv"), history_bytes_),
+                                      std::make_pair(std::string("fragments.csv"), fragments_bytes_)})
+      {
+        const std::string path = output_.directory() + "/" + name;
+        if (!std::filesystem::exists(path))
+          {
+            if (bytes > 0)
+              throw base::InputError("N - Checkpoint/restart from: " + path +
+                                     " is missing; a restart continues the tables of the run that wrote the "
+                                     "checkpoint (same K - Output/directory).");
+            continue;
+          }
+        if (std::filesystem::file_size(path) < bytes)
+          throw base::InputError("N - Checkpoint/restart from: " + path + " is shorter than at the checkpoint (" +
+                                 std::to_string(bytes) + " bytes); it does not belong to this run.");
+        std::filesystem::resize_file(path, bytes);
+      }
   }
 } // namespace shard

@@ -22,6 +22,14 @@
 #include <string>
 #include <vector>
 
+#include <functional>
+
+namespace shard::base
+{
+  class BinaryWriter;
+  class BinaryReader;
+} // namespace shard::base
+
 namespace shard::contact
 {
   /// What one contact evaluation returns (this rank's share).
@@ -125,6 +133,71 @@ namespace shard::contact
     {
       return n_rebuilds_;
     }
+
+    /**
+     * @brief Checkpoint: writes what this rank carries from step to step (candidate and
+     * dormant pair lists, penetration offsets and entry depths, positions and forces of the
+     * last step, build positions and reaches, the bond news seen, counters and energies).
+     * The node order depends on the partition, so load() needs the same rank count.
+     */
+    void
+    save(base::BinaryWriter &out) const;
+
+    /**
+     * @brief Restores what save() wrote, after prepare() at the same rank count and partition.
+     * @throws std::runtime_error when the data do not fit this contact set.
+     */
+    void
+    load(base::BinaryReader &in);
+
+    /**
+     * @brief The contact state in a form that does not depend on the partition: nodes by a
+     * key (the caller's key of a global DOF / 3), for a restart at another rank count.
+     */
+    struct PortableState
+    {
+      /// Key of every contact node (replicated part, in this rank's node order).
+      std::vector<unsigned long long> keys;
+      /// Contact force of the last step, 3 per node (N).
+      std::vector<double> force;
+      /// Per interaction: entry depth per node (m; -1 none) and the slaves of the last step.
+      std::vector<std::vector<double>>             entry_depth;
+      std::vector<std::vector<unsigned long long>> previous_slaves;
+      /// Per interaction: particle pairs (keys) with the overlap offset they keep (m).
+      std::vector<std::vector<std::pair<unsigned long long, unsigned long long>>> pairs;
+      std::vector<std::vector<double>>                                            offsets;
+      /// This rank's nodes: keys and positions of the last step (3 per node).
+      std::vector<unsigned long long> owned_keys;
+      std::vector<double>             x_old;
+      /// Step of the last build, rebuilds so far, energy of this rank, friction energy (J).
+      unsigned int last_build = 0, n_rebuilds = 0;
+      double       energy = 0, friction_energy = 0;
+
+      /// One field list for writing and reading: @p io(x) for every member.
+      template <typename IO>
+      void
+      serialize(IO &&io)
+      {
+        io(keys), io(force), io(entry_depth), io(previous_slaves), io(pairs), io(offsets), io(owned_keys);
+        io(x_old), io(last_build), io(n_rebuilds), io(energy), io(friction_energy);
+      }
+    };
+
+    /// The state of this rank as a PortableState; @p key_of_node maps global DOF / 3 to a key.
+    PortableState
+    portable_state(const std::function<unsigned long long(unsigned long long)> &key_of_node) const;
+
+    /**
+     * @brief Restart at another rank count, after prepare(): forces, entry depths, slaves and
+     * pair offsets from @p states (one per rank that wrote them; replicated parts from the
+     * first), positions of the last step of this rank's nodes from whichever rank had them;
+     * the candidate lists are built afresh at the next step and keep the offsets of the pairs
+     * they find again. @p energy is this rank's share of the contact energy (J).
+     * @p node_of_key maps a key back to global DOF / 3.
+     */
+    void
+    restore_portable(const std::vector<PortableState>                              &states,
+                     const std::function<unsigned long long(unsigned long long)> &node_of_key, double energy);
 
   private:
     enum class Type

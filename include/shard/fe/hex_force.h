@@ -168,6 +168,35 @@ namespace shard::fe
       return grp.state.data() + static_cast<std::size_t>(e - grp.begin) * grp.n_slots;
     }
 
+    /**
+     * @brief What local element @p e carries into the next step, for a checkpoint: stress (6),
+     * bulk viscosity q, hourglass forces (12), then the history slots.
+     */
+    std::vector<double>
+    checkpoint_values(unsigned int e) const
+    {
+      const auto         &grp = groups_[group_of_[e]];
+      std::vector<double> out(stress_.begin() + 6 * e, stress_.begin() + 6 * e + 6);
+      out.push_back(q_[e]);
+      out.insert(out.end(), hourglass_.begin() + 12 * e, hourglass_.begin() + 12 * e + 12);
+      out.insert(out.end(), state(e), state(e) + grp.n_slots);
+      return out;
+    }
+
+    /// Restores what checkpoint_values() returned; false if @p n does not match the element.
+    bool
+    set_checkpoint_values(unsigned int e, const double *values, std::size_t n)
+    {
+      auto &grp = groups_[group_of_[e]];
+      if (n != 19 + grp.n_slots)
+        return false;
+      std::copy(values, values + 6, stress_.begin() + 6 * e);
+      q_[e] = values[6];
+      std::copy(values + 7, values + 19, hourglass_.begin() + 12 * e);
+      std::copy(values + 19, values + n, grp.state.begin() + static_cast<std::size_t>(e - grp.begin) * grp.n_slots);
+      return true;
+    }
+
     /// Material of local element @p e.
     const materials::Material &
     material(unsigned int e) const

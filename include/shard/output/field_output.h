@@ -12,6 +12,7 @@
 #include <shard/particles/spg_force.h>
 #include <shard/mesh/discretization.h>
 
+#include <array>
 #include <string>
 #include <utility>
 #include <vector>
@@ -87,6 +88,21 @@ namespace shard::output
     pvd_path() const
     {
       return directory_ + "/solution.pvd";
+    }
+
+    /// The records (time, file) of solution.pvd and particles.pvd so far (checkpoint).
+    std::array<std::vector<std::pair<double, std::string>>, 2>
+    records() const
+    {
+      return {{records_, particle_records_}};
+    }
+
+    /// Restores the records of a checkpoint: the next write continues the series.
+    void
+    restore_records(const std::array<std::vector<std::pair<double, std::string>>, 2> &records)
+    {
+      records_          = records[0];
+      particle_records_ = records[1];
     }
 
   private:

@@ -127,6 +127,21 @@ namespace shard::particles
       return n_free_;
     }
 
+    /// Condition limit of rows rebuilt after bonds broke (`condition limit`). Unit: 1.
+    double
+    condition_limit() const
+    {
+      return condition_limit_;
+    }
+
+    /// Restart: the counts of broken bonds and free particles of a checkpoint.
+    void
+    restore_counts(const unsigned long long n_broken, const unsigned long long n_free)
+    {
+      n_broken_ = n_broken;
+      n_free_   = n_free;
+    }
+
     /// The normalized failure value q_I / q_c of owned particle @p i at the last update (0 without a criterion).
     double
     value(unsigned int i) const

@@ -12,6 +12,7 @@
 #include <shard/mesh/discretization.h>
 #include <shard/particles/spg_operator.h>
 
+#include <algorithm>
 #include <string>
 #include <unordered_map>
 #include <utility>
@@ -237,6 +238,34 @@ namespace shard::particles
     void
     rebuild_broken_rows();
 
+    /// The broken bonds and free particles as they were at the last prepare(): with them the
+    /// consistent correction of the last prepare() is solved again (checkpoint).
+    const std::vector<Bond> &
+    bonds_at_prepare() const
+    {
+      return prepared_broken_;
+    }
+
+    /// Free particles at the last prepare() (see bonds_at_prepare()).
+    const std::vector<unsigned long long> &
+    free_at_prepare() const
+    {
+      return prepared_free_;
+    }
+
+    /**
+     * @brief Restart: sets the broken bonds and free particles (global ids, sorted, the same
+     * on every rank) that the next prepare() builds the stencils with. Not collective.
+     */
+    void
+    restore_broken(std::vector<Bond> bonds, std::vector<unsigned long long> free_ids)
+    {
+      std::sort(bonds.begin(), bonds.end());
+      std::sort(free_ids.begin(), free_ids.end());
+      broken_ = std::move(bonds);
+      free_   = std::move(free_ids);
+    }
+
     /// Every bond broken so far, sorted (identical on every rank).
     const std::vector<Bond> &
     broken_bonds() const
@@ -269,6 +298,20 @@ namespace shard::particles
      */
     std::vector<unsigned int>
     take_changed_rows();
+
+    /// The rows take_changed_rows() would return now, kept (checkpoint).
+    const std::vector<unsigned int> &
+    changed_rows() const
+    {
+      return changed_rows_;
+    }
+
+    /// Restart at the same partition: the changed rows of a checkpoint replace the present ones.
+    void
+    restore_changed_rows(std::vector<unsigned int> rows)
+    {
+      changed_rows_ = std::move(rows);
+    }
 
     /// The local rows of A (first) and of G (second) rebuilt by break_bonds() since the last
     /// call (sorted), and forgets them; for SpgForce::refresh_forces().
@@ -317,6 +360,9 @@ namespace shard::particles
     std::vector<unsigned int> rebuilt_a_rows_, rebuilt_g_rows_;
     /// Broken bonds (global ids, sorted), kept across rebuilds.
     std::vector<Bond> broken_;
+    /// broken_ and free_ at the start of the last prepare().
+    std::vector<Bond>               prepared_broken_;
+    std::vector<unsigned long long> prepared_free_;
     /// Free particles (global ids, sorted), kept across rebuilds.
     std::vector<unsigned long long> free_;
     double                          broken_rcond_limit_ = 0;

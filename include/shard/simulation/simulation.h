@@ -12,6 +12,7 @@
 #include <shard/coupling/conversion.h>
 #include <shard/fe/hex_force.h>
 #include <shard/materials/material_library.h>
+#include <shard/output/checkpoint.h>
 #include <shard/mesh/discretization.h>
 #include <shard/output/field_output.h>
 #include <shard/output/fragments.h>
@@ -113,6 +114,7 @@ namespace shard
     output::FieldOutput          output_;
     output::Quantities           quantities_;
     output::Fragments            fragments_;
+    output::Checkpoint           checkpoint_;
 
     // State vectors, all with the one layout of Discretization.
     mesh::Vector d_, v_, v_now_, f_, f_ext_, mass_, d_phys_;
@@ -159,6 +161,32 @@ namespace shard
     /// Stops with an input error if a rigid body is (or may become) particles. @note Collective.
     void
     check_rigid_bodies() const;
+
+    /// Simulated time of the next field output (s).
+    double next_output_ = 0;
+    /// Text of everything a checkpoint must agree on: the parameters except end time, max
+    /// steps, title, output and checkpoint keys, and the mesh size.
+    std::string
+    fingerprint() const;
+    /**
+     * @brief Phase 10, checkpoint: everything that determines the future of the run, this
+     * rank's share keyed by partition-independent ids (doc/manual/checkpoint.md), written
+     * atomically by Checkpoint. @note Collective.
+     */
+    void
+    write_checkpoint();
+    /// Restart, before the particle set is built: converted cells, the broken bonds of the
+    /// last rebuild and (same rank count) the ghost set of the checkpoint.
+    void
+    restore_topology();
+    /// Restart, after prepare(): the state of the checkpoint. @note Collective.
+    void
+    restore_state();
+    /// Restart: history.csv and fragments.csv cut back to the checkpoint (rank 0).
+    void
+    truncate_tables() const;
+    /// Sizes of history.csv and fragments.csv at the checkpoint read (bytes).
+    unsigned long long history_bytes_ = 0, fragments_bytes_ = 0;
     /// The fastest node or particle of all ranks, for the energy-limit diagnostic.
     struct FastestNode
     {

@@ -126,6 +126,20 @@ namespace shard::time
       return rigid_;
     }
 
+    /// The held step (s): the only state the integrator carries from step to step (checkpoint).
+    double
+    held_dt() const
+    {
+      return held_dt_;
+    }
+
+    /// Restores the held step of a checkpoint.
+    void
+    set_held_dt(const double dt)
+    {
+      held_dt_ = dt;
+    }
+
   private:
     RigidBodies  rigid_;
     double       end_time_           = 1e-4;
