@@ -18,6 +18,10 @@ namespace shard::fe
   namespace
   {
     constexpr unsigned int batch_size = 64;
+    /// Largest number of batches per block of the threaded loop (a block runs on one thread).
+    constexpr unsigned int max_batches_per_block = 16;
+    /// Smallest number of blocks the batches are cut into, where there are batches enough.
+    constexpr unsigned int min_blocks = 64;
   }
 
   bool
@@ -275,31 +279,40 @@ namespace shard::fe
     for (unsigned int g = 0; g < groups_.size(); ++g)
       for (unsigned int b0 = groups_[g].begin; b0 < groups_[g].end; b0 += batch_size)
         batches_.push_back({g, b0, std::min(b0 + batch_size, groups_[g].end)});
-    // Greedy colouring: colour c takes, in batch order, every batch not yet coloured that shares
-    // no node with a batch already of colour c. It depends on the mesh and the element order
-    // only, so the order in which a node receives its element forces (colour by colour, within
-    // a batch in element order) is the same for any thread count.
-    const unsigned int        nb = batches_.size();
-    std::vector<int>          colour(nb, -1);
+    // Blocks of batches_per_block_ consecutive batches: a block runs on one thread in element order
+    // (the neighbours of an element are mostly near it in that order, so its nodes are still in
+    // cache). Greedy colouring of the blocks: colour c takes, in block order, every block not yet
+    // coloured that shares no node with a block already of colour c. It depends on the mesh and
+    // the element order only, so the order in which a node receives its element forces (colour by
+    // colour, within a block in element order) is the same for any thread count.
+    // Large blocks keep the cache reuse of the serial loop, many blocks balance the threads: at
+    // least min_blocks blocks where possible. The block size depends on the elements of the
+    // rank only, never on the thread count.
+    batches_per_block_ =
+      std::clamp<unsigned int>(batches_.size() / min_blocks, 1, max_batches_per_block);
+    const unsigned int n_blocks = base::n_chunks(batches_.size(), batches_per_block_);
+    std::vector<int>          colour(n_blocks, -1);
     std::vector<unsigned int> stamp;
     for (const unsigned int j : nodes_)
       if (j / 3 + 1 > stamp.size())
         stamp.resize(j / 3 + 1, 0);
     colour_offsets_.assign(1, 0);
-    batch_order_.clear();
-    for (unsigned int c = 0; batch_order_.size() < nb; ++c)
+    block_order_.clear();
+    for (unsigned int c = 0; block_order_.size() < n_blocks; ++c)
       {
-        for (unsigned int b = 0; b < nb; ++b)
+        for (unsigned int b = 0; b < n_blocks; ++b)
           if (colour[b] < 0)
             {
-              const unsigned int *first = &nodes_[8 * batches_[b].begin], *last = &nodes_[8 * batches_[b].end];
+              const unsigned int  last_batch = std::min<unsigned int>(batches_.size(), (b + 1) * batches_per_block_) - 1;
+              const unsigned int *first      = &nodes_[8 * batches_[b * batches_per_block_].begin],
+                                 *last       = &nodes_[8 * batches_[last_batch].end];
               if (std::any_of(first, last, [&](unsigned int j) { return stamp[j / 3] == c + 1; }))
                 continue;
               std::for_each(first, last, [&](unsigned int j) { stamp[j / 3] = c + 1; });
               colour[b] = static_cast<int>(c);
-              batch_order_.push_back(b);
+              block_order_.push_back(b);
             }
-        colour_offsets_.push_back(batch_order_.size());
+        colour_offsets_.push_back(block_order_.size());
       }
   }
 
@@ -497,21 +510,24 @@ namespace shard::fe
         }
     };
 
-    // Colour by colour; the batches of one colour share no node, so they scatter at the same time.
+    // Colour by colour; the blocks of one colour share no node, so they scatter at the same time.
     for (unsigned int col = 0; col + 1 < colour_offsets_.size(); ++col)
       base::for_each_range(colour_offsets_[col + 1] - colour_offsets_[col], 1,
                            [&](const unsigned int begin, const unsigned int end) {
                              for (unsigned int k = begin; k < end; ++k)
                                {
-                                 const unsigned int bi = batch_order_[colour_offsets_[col] + k];
-                                 try
-                                   {
-                                     process(bi);
-                                   }
-                                 catch (...)
-                                   {
-                                     error[bi] = std::current_exception();
-                                   }
+                                 const unsigned int block = block_order_[colour_offsets_[col] + k];
+                                 const unsigned int last =
+                                   std::min<unsigned int>(n_batches, (block + 1) * batches_per_block_);
+                                 for (unsigned int bi = block * batches_per_block_; bi < last; ++bi)
+                                   try
+                                     {
+                                       process(bi);
+                                     }
+                                   catch (...)
+                                     {
+                                       error[bi] = std::current_exception();
+                                     }
                                }
                            });
     // The failure of the lowest batch (its first element that failed), whatever the thread count.
