@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 // The shard program: run a scene, drive a material point, print the parameters, help and version.
+#include <shard/base/parallel.h>
 #include <shard/base/version.h>
 #include <shard/driver/material_test.h>
 #include <shard/simulation/simulation.h>
@@ -15,8 +16,10 @@ namespace
     "shard: explicit impact and blast failure of concrete and steel structures.\n"
     "\n"
     "Usage:\n"
-    "  shard run FILE.prm [--set \"Section/Subsection/key=value\" ...]\n"
-    "      Runs a scene. --set overrides any parameter of the file (repeatable).\n"
+    "  shard run FILE.prm [--set \"Section/Subsection/key=value\" ...] [--threads N]\n"
+    "      Runs a scene. --set overrides any parameter of the file (repeatable). --threads N runs\n"
+    "      the force loops on N threads in each MPI rank (1 to 1024, default 1); the results are\n"
+    "      bitwise the same for any N.\n"
     "      Writes history.csv, summary.json, parameters.prm and solution.pvd into the output directory.\n"
     "  shard print-parameters [FILE.prm] [--set ...]\n"
     "      Writes every parameter with its documentation, unit, range and default (or the value\n"
@@ -32,6 +35,19 @@ namespace
     "Run in parallel with: mpirun -np N shard run FILE.prm\n"
     "Exit codes: 0 completed, 1 bad input, 2 bad command line, 3 unstable run (material-test: a\n"
     "non-finite value from the material or a lateral stress condition without solution).\n";
+
+  /// Reads the value of `--threads`: a whole number from 1 to base::max_threads.
+  bool
+  parse_threads(const std::string &text, unsigned int &threads)
+  {
+    if (text.empty() || text.size() > 4 || text.find_first_not_of("0123456789") != std::string::npos)
+      return false;
+    const unsigned long n = std::stoul(text);
+    if (n < 1 || n > shard::base::max_threads)
+      return false;
+    threads = static_cast<unsigned int>(n);
+    return true;
+  }
 
   bool
   is_root(MPI_Comm comm)
@@ -138,9 +154,22 @@ main(int argc, char **argv)
     {
       std::string                 file;
       std::vector<std::string>    overrides;
+      unsigned int                threads = 1;
       for (unsigned int i = 1; i < args.size(); ++i)
         {
-          if (args[i] == "--set" && i + 1 < args.size())
+          if (args[i] == "--threads" || args[i].rfind("--threads=", 0) == 0)
+            {
+              const bool        split = args[i] == "--threads";
+              const std::string value = split ? (i + 1 < args.size() ? args[++i] : std::string()) : args[i].substr(10);
+              if (!parse_threads(value, threads))
+                {
+                  if (is_root(comm))
+                    std::cerr << "shard: --threads needs a whole number from 1 to " << shard::base::max_threads
+                              << " (threads per MPI rank), got '" << value << "'.\n";
+                  return 2;
+                }
+            }
+          else if (args[i] == "--set" && i + 1 < args.size())
             overrides.push_back(args[++i]);
           else if (args[i].rfind("--set=", 0) == 0)
             overrides.push_back(args[i].substr(6));
@@ -162,6 +191,8 @@ main(int argc, char **argv)
       shard::base::PrmSource source = file.empty() ? shard::base::PrmSource() : shard::base::PrmSource(file);
       for (const auto &o : overrides)
         source.add_override(o);
+      if (threads != 1)
+        shard::base::set_n_threads(threads);
 
       shard::Simulation simulation(comm);
       simulation.read(source);

@@ -33,7 +33,9 @@ def main():
     row("status", s.get("status", "?") + (f" ({s['message']})" if s.get("message") else ""))
     row("steps, final time", f"{s.get('steps', 0)} steps to t = {1e6 * s.get('final_time', 0):.1f} us")
     size = f"{s.get('n_elements', 0)} hexahedra, {s.get('n_particles', 0)} particles at the end"
-    row("model", f"{size}, {s.get('n_mpi_ranks', 1)} MPI ranks")
+    threads = s.get("n_threads", 1)
+    row("model", f"{size}, {s.get('n_mpi_ranks', 1)} MPI ranks"
+                 + (f" x {threads} threads" if threads > 1 else ""))
     with_particles = s.get("n_particles", 0) > 0 or s.get("n_converted_elements", 0) > 0
     if "v_projectile" in results:
         v = results["v_projectile"]

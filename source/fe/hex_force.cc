@@ -1,11 +1,13 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/fe/hex_force.h>
 #include <shard/fe/hex_kernel.h>
+#include <shard/base/parallel.h>
 
 #include <deal.II/base/mpi.h>
 
 #include <algorithm>
 #include <cmath>
+#include <exception>
 #include <numeric>
 #include <sstream>
 
@@ -16,6 +18,10 @@ namespace shard::fe
   namespace
   {
     constexpr unsigned int batch_size = 64;
+    /// Largest number of batches per block of the threaded loop (a block runs on one thread).
+    constexpr unsigned int max_batches_per_block = 16;
+    /// Smallest number of blocks the batches are cut into, where there are batches enough.
+    constexpr unsigned int min_blocks = 64;
   }
 
   bool
@@ -139,6 +145,7 @@ namespace shard::fe
         grp.state.assign(static_cast<std::size_t>(grp.end - grp.begin) * grp.n_slots, 0.);
         grp.material->initialize_state(grp.end - grp.begin, grp.state.data());
       }
+    build_batches();
   }
 
   void
@@ -203,6 +210,7 @@ namespace shard::fe
     std::fill(element_of_cell_.begin(), element_of_cell_.end(), -1);
     for (unsigned int e = 0; e < n; ++e)
       element_of_cell_[cell_index_[e]] = static_cast<int>(e);
+    build_batches();
   }
 
   void
@@ -265,6 +273,53 @@ namespace shard::fe
     throw Instability("step " + std::to_string(step) + ": " + what + " in " + describe(e, d));
   }
 
+  void
+  HexForce::build_batches()
+  {
+    // Batches of batch_size elements within each material group, in element order.
+    batches_.clear();
+    // Rigid bodies get none: no stress, no step limit (time::RigidBodies moves their nodes).
+    for (unsigned int g = 0; g < groups_.size(); ++g)
+      if (!groups_[g].material->rigid())
+        for (unsigned int b0 = groups_[g].begin; b0 < groups_[g].end; b0 += batch_size)
+          batches_.push_back({g, b0, std::min(b0 + batch_size, groups_[g].end)});
+    // Blocks of batches_per_block_ consecutive batches: a block runs on one thread in element order
+    // (the neighbours of an element are mostly near it in that order, so its nodes are still in
+    // cache). Greedy colouring of the blocks: colour c takes, in block order, every block not yet
+    // coloured that shares no node with a block already of colour c. It depends on the mesh and
+    // the element order only, so the order in which a node receives its element forces (colour by
+    // colour, within a block in element order) is the same for any thread count.
+    // Large blocks keep the cache reuse of the serial loop, many blocks balance the threads: at
+    // least min_blocks blocks where possible. The block size depends on the elements of the
+    // rank only, never on the thread count.
+    batches_per_block_ =
+      std::clamp<unsigned int>(batches_.size() / min_blocks, 1, max_batches_per_block);
+    const unsigned int n_blocks = base::n_chunks(batches_.size(), batches_per_block_);
+    std::vector<int>          colour(n_blocks, -1);
+    std::vector<unsigned int> stamp;
+    for (const unsigned int j : nodes_)
+      if (j / 3 + 1 > stamp.size())
+        stamp.resize(j / 3 + 1, 0);
+    colour_offsets_.assign(1, 0);
+    block_order_.clear();
+    for (unsigned int c = 0; block_order_.size() < n_blocks; ++c)
+      {
+        for (unsigned int b = 0; b < n_blocks; ++b)
+          if (colour[b] < 0)
+            {
+              const unsigned int  last_batch = std::min<unsigned int>(batches_.size(), (b + 1) * batches_per_block_) - 1;
+              const unsigned int *first      = &nodes_[8 * batches_[b * batches_per_block_].begin],
+                                 *last       = &nodes_[8 * batches_[last_batch].end];
+              if (std::any_of(first, last, [&](unsigned int j) { return stamp[j / 3] == c + 1; }))
+                continue;
+              std::for_each(first, last, [&](unsigned int j) { stamp[j / 3] = c + 1; });
+              colour[b] = static_cast<int>(c);
+              block_order_.push_back(b);
+            }
+        colour_offsets_.push_back(block_order_.size());
+      }
+  }
+
   ForceResult
   HexForce::add_internal_forces(const mesh::Vector &d, const mesh::Vector &v, const double dt,
                                 const unsigned int step, mesh::Vector &f)
@@ -272,190 +327,224 @@ namespace shard::fe
     const auto  &X  = discretization_->reference_positions();
     const double *Xp = X.begin(), *dp = d.begin(), *vp = v.begin();
     double       *fp = f.begin();
-    ForceResult   result;
 
-    // Per-batch scratch: kinematics of pass 1 used by the material call and pass 2.
-    struct Scratch
-    {
-      double B[8][3];
-      double gamma[4][8];
-      double q[4][3];
-      double rotation[3][3];
-      double volume, volume_mid, max_area;
-      double stress_old[6];
-    };
-    std::vector<Scratch> scratch(batch_size);
-    double               de[batch_size * 6], J[batch_size], length[batch_size], c[batch_size];
+    // One partial result and one error slot per batch, combined in batch order below.
+    const unsigned int              n_batches = batches_.size();
+    std::vector<ForceResult>        partial(n_batches);
+    std::vector<std::exception_ptr> error(n_batches);
 
-    for (auto &grp : groups_)
-      for (unsigned int b0 = grp.begin; b0 < grp.end; b0 += batch_size)
+    const auto process = [&](const unsigned int bi) {
+      const Batch &bat    = batches_[bi];
+      auto        &grp    = groups_[bat.group];
+      ForceResult &result = partial[bi];
+      // Per-batch scratch: kinematics of pass 1 used by the material call and pass 2.
+      struct Scratch
+      {
+        double B[8][3];
+        double gamma[4][8];
+        double q[4][3];
+        double rotation[3][3];
+        double volume, volume_mid, max_area;
+        double stress_old[6];
+      };
+      Scratch            scratch[batch_size];
+      double             de[batch_size * 6], J[batch_size], length[batch_size], c[batch_size];
+      const unsigned int b0 = bat.begin;
+      const unsigned int nb = bat.end - bat.begin;
+      // Pass 1: kinematics, objective rotation of the stored stress.
+      for (unsigned int k = 0; k < nb; ++k)
         {
-          // Rigid bodies: no stress, no step limit (time::RigidBodies moves their nodes).
-          if (grp.material->rigid())
-            break;
-          const unsigned int nb = std::min(batch_size, grp.end - b0);
-          // Pass 1: kinematics, objective rotation of the stored stress.
-          for (unsigned int k = 0; k < nb; ++k)
+          const unsigned int  e = b0 + k;
+          const unsigned int *n = &nodes_[8 * e];
+          Scratch            &s = scratch[k];
+          double              x[8][3], xm[8][3], vel[8][3];
+          for (unsigned int a = 0; a < 8; ++a)
+            for (unsigned int i = 0; i < 3; ++i)
+              {
+                const unsigned int j = n[a] + i;
+                vel[a][i]            = vp[j];
+                x[a][i]              = Xp[j] + dp[j];
+                xm[a][i]             = x[a][i] - 0.5 * dt * vel[a][i];
+              }
+          double Bm[8][3];
+          s.volume_mid = hex_volume_gradient(xm, Bm);
+          s.volume     = hex_volume_gradient(x, s.B);
+          if (!(s.volume > 0) || !(s.volume_mid > 0))
+            fail(e, d, step, "inverted element (volume " + std::to_string(s.volume) + " m^3)");
+          // Mean velocity gradient at mid-step.
+          double       L[3][3] = {};
+          const double inv_vm  = 1. / s.volume_mid;
+          for (unsigned int a = 0; a < 8; ++a)
+            for (unsigned int i = 0; i < 3; ++i)
+              for (unsigned int j = 0; j < 3; ++j)
+                L[i][j] += vel[a][i] * Bm[a][j];
+          double W[3][3];
+          for (unsigned int i = 0; i < 3; ++i)
+            for (unsigned int j = 0; j < 3; ++j)
+              {
+                L[i][j] *= inv_vm;
+              }
+          for (unsigned int i = 0; i < 3; ++i)
+            for (unsigned int j = 0; j < 3; ++j)
+              W[i][j] = 0.5 * (L[i][j] - L[j][i]);
+          double *dek = &de[6 * k];
+          dek[0]      = dt * L[0][0];
+          dek[1]      = dt * L[1][1];
+          dek[2]      = dt * L[2][2];
+          dek[3]      = 0.5 * dt * (L[1][2] + L[2][1]);
+          dek[4]      = 0.5 * dt * (L[0][2] + L[2][0]);
+          dek[5]      = 0.5 * dt * (L[0][1] + L[1][0]);
+          hughes_winget_rotation(W, dt, s.rotation);
+          double *sig = &stress_[6 * e];
+          rotate_symmetric(s.rotation, sig);
+          std::copy(sig, sig + 6, s.stress_old);
+          J[k]       = s.volume / volume0_[e];
+          s.max_area = hex_max_face_area(x);
+          length[k]  = s.volume / s.max_area;
+          // Hourglass shape vectors and rates at the end of the step.
+          hex_hourglass_vectors(x, s.B, s.volume, s.gamma);
+          for (unsigned int m = 0; m < 4; ++m)
+            for (unsigned int i = 0; i < 3; ++i)
+              {
+                double q = 0;
+                for (unsigned int a = 0; a < 8; ++a)
+                  q += s.gamma[m][a] * vel[a][i];
+                s.q[m][i] = q;
+              }
+        }
+
+      // One material call per batch.
+      materials::PointBatch batch;
+      batch.n                     = nb;
+      batch.dt                    = dt;
+      batch.strain_increment      = de;
+      batch.relative_volume       = J;
+      batch.characteristic_length = length;
+      batch.stress                = &stress_[6 * b0];
+      batch.state                 = grp.state.data() + static_cast<std::size_t>(b0 - grp.begin) * grp.n_slots;
+      batch.wave_speed            = c;
+      grp.material->update(batch);
+
+      // Pass 2: energy, nodal forces, hourglass control, time step.
+      const double rho0 = grp.material->density();
+      for (unsigned int k = 0; k < nb; ++k)
+        {
+          const unsigned int e   = b0 + k;
+          Scratch           &s   = scratch[k];
+          const double      *sig = &stress_[6 * e];
+          const double      *dek = &de[6 * k];
+          double             work = 0;
+          for (unsigned int i = 0; i < 3; ++i)
+            work += (s.stress_old[i] + sig[i]) * dek[i];
+          for (unsigned int i = 3; i < 6; ++i)
+            work += 2. * (s.stress_old[i] + sig[i]) * dek[i];
+          work *= 0.5 * s.volume_mid;
+          if (!std::isfinite(work) || !std::isfinite(c[k]))
+            fail(e, d, step, "non-finite stress (sigma_xx = " + std::to_string(sig[0]) + " Pa)");
+          const double rho = rho0 / J[k];
+          // Bulk viscosity in compression (not stored). Its work is booked like the stress
+          // work, with the mean of the q of both ends of the step.
+          const double trd = dek[0] + dek[1] + dek[2];
+          const double q   = bulk_viscosity(rho, length[k], c[k], trd, dt, bulk_q1_, bulk_q2_);
+          work -= 0.5 * (q_[e] + q) * trd * s.volume_mid;
+          q_[e] = q;
+          result.internal_energy += work;
+          // The bulk viscosity lowers the stable step (LS-DYNA's form of the correction).
+          element_dt_[e]   = bulk_viscosity_step(length[k], c[k], trd, dt, bulk_q1_, bulk_q2_);
+          result.stable_dt = std::min(result.stable_dt, element_dt_[e]);
+
+          // Stiffness hourglass control: the hourglass forces rotate with the element and
+          // grow with the hourglass displacement increment.
+          double      *h     = &hourglass_[12 * e];
+          double       hg_work = 0;
+          if (viscous_)
             {
-              const unsigned int  e = b0 + k;
-              const unsigned int *n = &nodes_[8 * e];
-              Scratch            &s = scratch[k];
-              double              x[8][3], xm[8][3], vel[8][3];
-              for (unsigned int a = 0; a < 8; ++a)
-                for (unsigned int i = 0; i < 3; ++i)
-                  {
-                    const unsigned int j = n[a] + i;
-                    vel[a][i]            = vp[j];
-                    x[a][i]              = Xp[j] + dp[j];
-                    xm[a][i]             = x[a][i] - 0.5 * dt * vel[a][i];
-                  }
-              double Bm[8][3];
-              s.volume_mid = hex_volume_gradient(xm, Bm);
-              s.volume     = hex_volume_gradient(x, s.B);
-              if (!(s.volume > 0) || !(s.volume_mid > 0))
-                fail(e, d, step, "inverted element (volume " + std::to_string(s.volume) + " m^3)");
-              // Mean velocity gradient at mid-step.
-              double       L[3][3] = {};
-              const double inv_vm  = 1. / s.volume_mid;
-              for (unsigned int a = 0; a < 8; ++a)
-                for (unsigned int i = 0; i < 3; ++i)
-                  for (unsigned int j = 0; j < 3; ++j)
-                    L[i][j] += vel[a][i] * Bm[a][j];
-              double W[3][3];
-              for (unsigned int i = 0; i < 3; ++i)
-                for (unsigned int j = 0; j < 3; ++j)
-                  {
-                    L[i][j] *= inv_vm;
-                  }
-              for (unsigned int i = 0; i < 3; ++i)
-                for (unsigned int j = 0; j < 3; ++j)
-                  W[i][j] = 0.5 * (L[i][j] - L[j][i]);
-              double *dek = &de[6 * k];
-              dek[0]      = dt * L[0][0];
-              dek[1]      = dt * L[1][1];
-              dek[2]      = dt * L[2][2];
-              dek[3]      = 0.5 * dt * (L[1][2] + L[2][1]);
-              dek[4]      = 0.5 * dt * (L[0][2] + L[2][0]);
-              dek[5]      = 0.5 * dt * (L[0][1] + L[1][0]);
-              hughes_winget_rotation(W, dt, s.rotation);
-              double *sig = &stress_[6 * e];
-              rotate_symmetric(s.rotation, sig);
-              std::copy(sig, sig + 6, s.stress_old);
-              J[k]       = s.volume / volume0_[e];
-              s.max_area = hex_max_face_area(x);
-              length[k]  = s.volume / s.max_area;
-              // Hourglass shape vectors and rates at the end of the step.
-              hex_hourglass_vectors(x, s.B, s.volume, s.gamma);
+              // Viscous form: the hourglass force follows the hourglass velocity. The
+              // coefficient q rho c V^(2/3) / 4 stays bounded relative to the nodal mass when
+              // the element flattens, so the damping term is stable at the element step.
+              const double v13     = std::cbrt(s.volume);
+              const double damping = 0.25 * hourglass_coefficient_ * rho * c[k] * v13 * v13;
               for (unsigned int m = 0; m < 4; ++m)
                 for (unsigned int i = 0; i < 3; ++i)
                   {
-                    double q = 0;
-                    for (unsigned int a = 0; a < 8; ++a)
-                      q += s.gamma[m][a] * vel[a][i];
-                    s.q[m][i] = q;
+                    h[3 * m + i] = damping * s.q[m][i];
+                    hg_work += dt * s.q[m][i] * h[3 * m + i];
                   }
             }
-
-          // One material call per batch.
-          materials::PointBatch batch;
-          batch.n                     = nb;
-          batch.dt                    = dt;
-          batch.strain_increment      = de;
-          batch.relative_volume       = J;
-          batch.characteristic_length = length;
-          batch.stress                = &stress_[6 * b0];
-          batch.state                 = grp.state.data() + static_cast<std::size_t>(b0 - grp.begin) * grp.n_slots;
-          batch.wave_speed            = c;
-          grp.material->update(batch);
-
-          // Pass 2: energy, nodal forces, hourglass control, time step.
-          const double rho0 = grp.material->density();
-          for (unsigned int k = 0; k < nb; ++k)
+          else
             {
-              const unsigned int e   = b0 + k;
-              Scratch           &s   = scratch[k];
-              const double      *sig = &stress_[6 * e];
-              const double      *dek = &de[6 * k];
-              double             work = 0;
-              for (unsigned int i = 0; i < 3; ++i)
-                work += (s.stress_old[i] + sig[i]) * dek[i];
-              for (unsigned int i = 3; i < 6; ++i)
-                work += 2. * (s.stress_old[i] + sig[i]) * dek[i];
-              work *= 0.5 * s.volume_mid;
-              if (!std::isfinite(work) || !std::isfinite(c[k]))
-                fail(e, d, step, "non-finite stress (sigma_xx = " + std::to_string(sig[0]) + " Pa)");
-              const double rho = rho0 / J[k];
-              // Bulk viscosity in compression (not stored). Its work is booked like the stress
-              // work, with the mean of the q of both ends of the step.
-              const double trd = dek[0] + dek[1] + dek[2];
-              const double q   = bulk_viscosity(rho, length[k], c[k], trd, dt, bulk_q1_, bulk_q2_);
-              work -= 0.5 * (q_[e] + q) * trd * s.volume_mid;
-              q_[e] = q;
-              result.internal_energy += work;
-              // The bulk viscosity lowers the stable step (LS-DYNA's form of the correction).
-              element_dt_[e]   = bulk_viscosity_step(length[k], c[k], trd, dt, bulk_q1_, bulk_q2_);
-              result.stable_dt = std::min(result.stable_dt, element_dt_[e]);
-
-              // Stiffness hourglass control: the hourglass forces rotate with the element and
-              // grow with the hourglass displacement increment.
-              double      *h     = &hourglass_[12 * e];
-              double       hg_work = 0;
-              if (viscous_)
-                {
-                  // Viscous form: the hourglass force follows the hourglass velocity. The
-                  // coefficient q rho c V^(2/3) / 4 stays bounded relative to the nodal mass when
-                  // the element flattens, so the damping term is stable at the element step.
-                  const double v13     = std::cbrt(s.volume);
-                  const double damping = 0.25 * hourglass_coefficient_ * rho * c[k] * v13 * v13;
-                  for (unsigned int m = 0; m < 4; ++m)
-                    for (unsigned int i = 0; i < 3; ++i)
-                      {
-                        h[3 * m + i] = damping * s.q[m][i];
-                        hg_work += dt * s.q[m][i] * h[3 * m + i];
-                      }
-                }
-              else
-                {
-                  // Stiffness form: the stored forces rotate with the element and grow with the
-                  // hourglass displacement increment.
-                  double b2 = 0;
-                  for (unsigned int a = 0; a < 8; ++a)
-                    b2 += s.B[a][0] * s.B[a][0] + s.B[a][1] * s.B[a][1] + s.B[a][2] * s.B[a][2];
-                  const double stiffness = hourglass_coefficient_ * rho * c[k] * c[k] * b2 / (8. * s.volume);
-                  for (unsigned int m = 0; m < 4; ++m)
-                    {
-                      double r[3];
-                      for (unsigned int i = 0; i < 3; ++i)
-                        r[i] = s.rotation[i][0] * h[3 * m] + s.rotation[i][1] * h[3 * m + 1] +
-                               s.rotation[i][2] * h[3 * m + 2];
-                      for (unsigned int i = 0; i < 3; ++i)
-                        {
-                          const double inc = stiffness * dt * s.q[m][i];
-                          h[3 * m + i]     = r[i] + inc;
-                          hg_work += dt * s.q[m][i] * (r[i] + 0.5 * inc);
-                        }
-                    }
-                }
-              result.hourglass_energy += hg_work;
-
-              const unsigned int *n = &nodes_[8 * e];
+              // Stiffness form: the stored forces rotate with the element and grow with the
+              // hourglass displacement increment.
+              double b2 = 0;
               for (unsigned int a = 0; a < 8; ++a)
+                b2 += s.B[a][0] * s.B[a][0] + s.B[a][1] * s.B[a][1] + s.B[a][2] * s.B[a][2];
+              const double stiffness = hourglass_coefficient_ * rho * c[k] * c[k] * b2 / (8. * s.volume);
+              for (unsigned int m = 0; m < 4; ++m)
                 {
-                  const double *B  = s.B[a];
-                  double       *fa = fp + n[a];
-                  fa[0] -= (sig[0] - q) * B[0] + sig[5] * B[1] + sig[4] * B[2];
-                  fa[1] -= sig[5] * B[0] + (sig[1] - q) * B[1] + sig[3] * B[2];
-                  fa[2] -= sig[4] * B[0] + sig[3] * B[1] + (sig[2] - q) * B[2];
-                  for (unsigned int m = 0; m < 4; ++m)
+                  double r[3];
+                  for (unsigned int i = 0; i < 3; ++i)
+                    r[i] = s.rotation[i][0] * h[3 * m] + s.rotation[i][1] * h[3 * m + 1] +
+                           s.rotation[i][2] * h[3 * m + 2];
+                  for (unsigned int i = 0; i < 3; ++i)
                     {
-                      const double g = s.gamma[m][a];
-                      fa[0] -= g * h[3 * m];
-                      fa[1] -= g * h[3 * m + 1];
-                      fa[2] -= g * h[3 * m + 2];
+                      const double inc = stiffness * dt * s.q[m][i];
+                      h[3 * m + i]     = r[i] + inc;
+                      hg_work += dt * s.q[m][i] * (r[i] + 0.5 * inc);
                     }
+                }
+            }
+          result.hourglass_energy += hg_work;
+
+          const unsigned int *n = &nodes_[8 * e];
+          for (unsigned int a = 0; a < 8; ++a)
+            {
+              const double *B  = s.B[a];
+              double       *fa = fp + n[a];
+              fa[0] -= (sig[0] - q) * B[0] + sig[5] * B[1] + sig[4] * B[2];
+              fa[1] -= sig[5] * B[0] + (sig[1] - q) * B[1] + sig[3] * B[2];
+              fa[2] -= sig[4] * B[0] + sig[3] * B[1] + (sig[2] - q) * B[2];
+              for (unsigned int m = 0; m < 4; ++m)
+                {
+                  const double g = s.gamma[m][a];
+                  fa[0] -= g * h[3 * m];
+                  fa[1] -= g * h[3 * m + 1];
+                  fa[2] -= g * h[3 * m + 2];
                 }
             }
         }
+    };
+
+    // Colour by colour; the blocks of one colour share no node, so they scatter at the same time.
+    for (unsigned int col = 0; col + 1 < colour_offsets_.size(); ++col)
+      base::for_each_range(colour_offsets_[col + 1] - colour_offsets_[col], 1,
+                           [&](const unsigned int begin, const unsigned int end) {
+                             for (unsigned int k = begin; k < end; ++k)
+                               {
+                                 const unsigned int block = block_order_[colour_offsets_[col] + k];
+                                 const unsigned int last =
+                                   std::min<unsigned int>(n_batches, (block + 1) * batches_per_block_);
+                                 for (unsigned int bi = block * batches_per_block_; bi < last; ++bi)
+                                   try
+                                     {
+                                       process(bi);
+                                     }
+                                   catch (...)
+                                     {
+                                       error[bi] = std::current_exception();
+                                     }
+                               }
+                           });
+    // The failure of the lowest batch (its first element that failed), whatever the thread count.
+    for (const auto &e : error)
+      if (e)
+        std::rethrow_exception(e);
+    ForceResult result;
+    for (const auto &p : partial)
+      {
+        result.internal_energy += p.internal_energy;
+        result.hourglass_energy += p.hourglass_energy;
+        result.stable_dt = std::min(result.stable_dt, p.stable_dt);
+      }
     return result;
   }
 } // namespace shard::fe

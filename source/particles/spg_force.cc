@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/base/parallel.h>
 #include <shard/fe/hex_kernel.h>
 #include <shard/particles/spg_force.h>
 
@@ -406,13 +407,15 @@ namespace shard::particles
   SpgForce::gather(const mesh::Vector &v, std::vector<double> &out) const
   {
     const unsigned int n_k = particles_->stencils().n_k;
-    for (unsigned int k = 0; k < n_k; ++k)
-      {
-        const unsigned int j = particles_->local_dof(k);
-        out[3 * k]           = v.local_element(j);
-        out[3 * k + 1]       = v.local_element(j + 1);
-        out[3 * k + 2]       = v.local_element(j + 2);
-      }
+    base::for_each_range(n_k, 1024, [&](const unsigned int begin, const unsigned int end) {
+      for (unsigned int k = begin; k < end; ++k)
+        {
+          const unsigned int j = particles_->local_dof(k);
+          out[3 * k]           = v.local_element(j);
+          out[3 * k + 1]       = v.local_element(j + 1);
+          out[3 * k + 2]       = v.local_element(j + 2);
+        }
+    });
   }
 
   double
@@ -488,107 +491,139 @@ namespace shard::particles
     op_.displacement(dk_.data(), u_.data());
     op_.deformation_gradient(u_.data(), Fnew_.data());
 
-    double de[6 * batch_size], J[batch_size], length[batch_size], c[batch_size], stress_old[6 * batch_size],
-      volume_mid[batch_size], F_inv[9 * batch_size];
-    for (auto &g : groups_)
-      for (unsigned int b0 = g.begin; b0 < g.end; b0 += batch_size)
+    // Batches of batch_size particles of one material; each writes only its own particles.
+    struct Batch
+    {
+      unsigned int group, begin, end;
+    };
+    std::vector<Batch> batches;
+    for (unsigned int gi = 0; gi < groups_.size(); ++gi)
+      for (unsigned int b0 = groups_[gi].begin; b0 < groups_[gi].end; b0 += batch_size)
+        batches.push_back({gi, b0, std::min(b0 + batch_size, groups_[gi].end)});
+    // One partial per batch, combined in batch order below (the same for any thread count).
+    struct Partial
+    {
+      double       stable_dt = 1e300;
+      unsigned int smallest  = 0;
+    };
+    work_.resize(n_owned());
+    std::vector<Partial> partial(batches.size());
+    base::for_each_chunk(batches.size(), 1, [&](const unsigned int bi, unsigned int, unsigned int) {
+      auto              &g    = groups_[batches[bi].group];
+      Partial           &part = partial[bi];
+      const unsigned int b0   = batches[bi].begin;
+      const unsigned int nb   = batches[bi].end - b0;
+      double de[6 * batch_size], J[batch_size], length[batch_size], c[batch_size], stress_old[6 * batch_size],
+        volume_mid[batch_size], F_inv[9 * batch_size];
+      for (unsigned int k = 0; k < nb; ++k)
         {
-          const unsigned int nb = std::min(batch_size, g.end - b0);
-          for (unsigned int k = 0; k < nb; ++k)
-            {
-              const unsigned int i  = b0 + k;
-              const double      *Fo = &F_[9 * i], *Fn = &Fnew_[9 * i];
-              double             Fm[9], Fm_inv[9], L[9];
-              for (unsigned int a = 0; a < 9; ++a)
-                Fm[a] = 0.5 * (Fo[a] + Fn[a]);
-              const double det_m = invert(Fm, Fm_inv);
-              J[k]               = invert(Fn, &F_inv[9 * k]);
-              if (!(J[k] > 0) || !(det_m > 0))
-                fail(i, step, "inverted particle (det F = " + std::to_string(J[k]) + ")");
-              // dt L = (F_new - F_old) F_mid^-1.
-              for (unsigned int a = 0; a < 3; ++a)
-                for (unsigned int b = 0; b < 3; ++b)
-                  {
-                    double s = 0;
-                    for (unsigned int m = 0; m < 3; ++m)
-                      s += (Fn[3 * a + m] - Fo[3 * a + m]) * Fm_inv[3 * m + b];
-                    L[3 * a + b] = s;
-                  }
-              double *e = &de[6 * k];
-              e[0]      = L[0];
-              e[1]      = L[4];
-              e[2]      = L[8];
-              e[3]      = 0.5 * (L[5] + L[7]);
-              e[4]      = 0.5 * (L[2] + L[6]);
-              e[5]      = 0.5 * (L[1] + L[3]);
-              double W[3][3], R[3][3];
-              for (unsigned int a = 0; a < 3; ++a)
-                for (unsigned int b = 0; b < 3; ++b)
-                  W[a][b] = 0.5 * (L[3 * a + b] - L[3 * b + a]) / dt;
-              fe::hughes_winget_rotation(W, dt, R);
-              double *sig = &stress_[6 * i];
-              fe::rotate_symmetric(R, sig);
-              std::copy(sig, sig + 6, &stress_old[6 * k]);
-              length[k]     = length_[i] * std::cbrt(J[k]);
-              volume_mid[k] = particles_->volume(i) * det_m;
-            }
-
-          materials::PointBatch batch;
-          batch.n                     = nb;
-          batch.dt                    = dt;
-          batch.strain_increment      = de;
-          batch.relative_volume       = J;
-          batch.characteristic_length = length;
-          batch.stress                = &stress_[6 * b0];
-          batch.state                 = g.state.data() + std::size_t(b0 - g.begin) * g.n_slots;
-          batch.wave_speed            = c;
-          g.material->update(batch);
-
-          for (unsigned int k = 0; k < nb; ++k)
-            {
-              const unsigned int i   = b0 + k;
-              const double      *sig = &stress_[6 * i];
-              const double      *e   = &de[6 * k];
-              const double      *so  = &stress_old[6 * k];
-              double             work = 0;
-              for (unsigned int a = 0; a < 3; ++a)
-                work += (so[a] + sig[a]) * e[a] + 2. * (so[a + 3] + sig[a + 3]) * e[a + 3];
-              work *= 0.5 * volume_mid[k];
-              if (!std::isfinite(work) || !std::isfinite(c[k]))
-                fail(i, step, "non-finite stress (sigma_xx = " + std::to_string(sig[0]) + " Pa)");
-              // Bulk viscosity in compression (not stored; its work is dissipated into internal energy).
-              // Its work is booked like the stress work, with the mean of the q of both ends of the
-              // step (the central difference applies each force half to the step before and half to
-              // the step after it).
-              const double trd = e[0] + e[1] + e[2];
-              const double q   = fe::bulk_viscosity(density_[i] / J[k], length[k], c[k], trd, dt, bulk_q1_, bulk_q2_);
-              work -= 0.5 * (q_[i] + q) * trd * volume_mid[k];
-              q_[i] = q;
-              result.internal_energy += work;
-              // The bulk viscosity lowers the stable step (LS-DYNA's form of the correction).
-              // Spacing for the step: the reference spacing times the smallest principal stretch.
-              const double spacing = length_[i] * smallest_stretch(&Fnew_[9 * i]);
-              const double dt_i    = fe::bulk_viscosity_step(spacing, c[k], trd, dt, bulk_q1_, bulk_q2_);
-              if (dt_i < result.stable_dt)
-                {
-                  result.stable_dt = dt_i;
-                  smallest_step_   = i;
-                }
-              volume_times_piola(sig, q, &F_inv[9 * k], particles_->volume(i) * J[k], &VP_[9 * i]);
-            }
+          const unsigned int i  = b0 + k;
+          const double      *Fo = &F_[9 * i], *Fn = &Fnew_[9 * i];
+          double             Fm[9], Fm_inv[9], L[9];
+          for (unsigned int a = 0; a < 9; ++a)
+            Fm[a] = 0.5 * (Fo[a] + Fn[a]);
+          const double det_m = invert(Fm, Fm_inv);
+          J[k]               = invert(Fn, &F_inv[9 * k]);
+          if (!(J[k] > 0) || !(det_m > 0))
+            fail(i, step, "inverted particle (det F = " + std::to_string(J[k]) + ")");
+          // dt L = (F_new - F_old) F_mid^-1.
+          for (unsigned int a = 0; a < 3; ++a)
+            for (unsigned int b = 0; b < 3; ++b)
+              {
+                double s = 0;
+                for (unsigned int m = 0; m < 3; ++m)
+                  s += (Fn[3 * a + m] - Fo[3 * a + m]) * Fm_inv[3 * m + b];
+                L[3 * a + b] = s;
+              }
+          double *e = &de[6 * k];
+          e[0]      = L[0];
+          e[1]      = L[4];
+          e[2]      = L[8];
+          e[3]      = 0.5 * (L[5] + L[7]);
+          e[4]      = 0.5 * (L[2] + L[6]);
+          e[5]      = 0.5 * (L[1] + L[3]);
+          double W[3][3], R[3][3];
+          for (unsigned int a = 0; a < 3; ++a)
+            for (unsigned int b = 0; b < 3; ++b)
+              W[a][b] = 0.5 * (L[3 * a + b] - L[3 * b + a]) / dt;
+          fe::hughes_winget_rotation(W, dt, R);
+          double *sig = &stress_[6 * i];
+          fe::rotate_symmetric(R, sig);
+          std::copy(sig, sig + 6, &stress_old[6 * k]);
+          length[k]     = length_[i] * std::cbrt(J[k]);
+          volume_mid[k] = particles_->volume(i) * det_m;
         }
+
+      materials::PointBatch batch;
+      batch.n                     = nb;
+      batch.dt                    = dt;
+      batch.strain_increment      = de;
+      batch.relative_volume       = J;
+      batch.characteristic_length = length;
+      batch.stress                = &stress_[6 * b0];
+      batch.state                 = g.state.data() + std::size_t(b0 - g.begin) * g.n_slots;
+      batch.wave_speed            = c;
+      g.material->update(batch);
+
+      for (unsigned int k = 0; k < nb; ++k)
+        {
+          const unsigned int i   = b0 + k;
+          const double      *sig = &stress_[6 * i];
+          const double      *e   = &de[6 * k];
+          const double      *so  = &stress_old[6 * k];
+          double             work = 0;
+          for (unsigned int a = 0; a < 3; ++a)
+            work += (so[a] + sig[a]) * e[a] + 2. * (so[a + 3] + sig[a + 3]) * e[a + 3];
+          work *= 0.5 * volume_mid[k];
+          if (!std::isfinite(work) || !std::isfinite(c[k]))
+            fail(i, step, "non-finite stress (sigma_xx = " + std::to_string(sig[0]) + " Pa)");
+          // Bulk viscosity in compression (not stored; its work is dissipated into internal energy).
+          // Its work is booked like the stress work, with the mean of the q of both ends of the
+          // step (the central difference applies each force half to the step before and half to
+          // the step after it).
+          const double trd = e[0] + e[1] + e[2];
+          const double q   = fe::bulk_viscosity(density_[i] / J[k], length[k], c[k], trd, dt, bulk_q1_, bulk_q2_);
+          work -= 0.5 * (q_[i] + q) * trd * volume_mid[k];
+          q_[i] = q;
+          work_[i] = work;
+          // The bulk viscosity lowers the stable step (LS-DYNA's form of the correction).
+          // Spacing for the step: the reference spacing times the smallest principal stretch.
+          const double spacing = length_[i] * smallest_stretch(&Fnew_[9 * i]);
+          const double dt_i    = fe::bulk_viscosity_step(spacing, c[k], trd, dt, bulk_q1_, bulk_q2_);
+          if (dt_i < part.stable_dt)
+            {
+              part.stable_dt = dt_i;
+              part.smallest  = i;
+            }
+          volume_times_piola(sig, q, &F_inv[9 * k], particles_->volume(i) * J[k], &VP_[9 * i]);
+        }
+    });
+    // The work summed in particle order, as in one pass over all particles.
+    for (unsigned int i = 0; i < n_owned(); ++i)
+      result.internal_energy += work_[i];
+    for (const auto &p : partial)
+      {
+        // The first particle of the smallest step, as in one pass over all particles.
+        if (p.stable_dt < result.stable_dt)
+          {
+            result.stable_dt = p.stable_dt;
+            smallest_step_   = p.smallest;
+          }
+      }
     std::fill(fk_.begin(), fk_.end(), 0.);
     op_.subtract_internal_force(VP_.data(), fk_.data());
     if (options_.stabilization == Stabilization::residual)
       result.stabilization_energy = op_.subtract_residual_force(dk_.data(), fk_.data());
     const unsigned int n_k = particles_->stencils().n_k;
-    for (unsigned int k = 0; k < n_k; ++k)
-      {
-        const unsigned int j = particles_->local_dof(k);
-        f.local_element(j) += fk_[3 * k];
-        f.local_element(j + 1) += fk_[3 * k + 1];
-        f.local_element(j + 2) += fk_[3 * k + 2];
-      }
+    base::for_each_range(n_k, 1024, [&](const unsigned int begin, const unsigned int end) {
+      for (unsigned int k = begin; k < end; ++k)
+        {
+          const unsigned int j = particles_->local_dof(k);
+          f.local_element(j) += fk_[3 * k];
+          f.local_element(j + 1) += fk_[3 * k + 1];
+          f.local_element(j + 2) += fk_[3 * k + 2];
+        }
+    });
     F_.swap(Fnew_);
     // The refresh after broken bonds may reuse this evaluation (not with the filter, which
     // changes d and reuses dk_ as scratch).
@@ -610,7 +645,7 @@ namespace shard::particles
     const auto bytes = [](const auto &v) { return v.capacity() * sizeof(v[0]); };
     std::size_t b = sizeof(*this) - sizeof(op_) + op_.memory_consumption() + bytes(group_of_) + bytes(F_) +
                     bytes(stress_) + bytes(q_) + bytes(density_) + bytes(length_) + bytes(dk_) + bytes(u_) +
-                    bytes(fk_) + bytes(Fnew_) + bytes(VP_) + groups_.capacity() * sizeof(Group);
+                    bytes(fk_) + bytes(Fnew_) + bytes(VP_) + bytes(work_) + groups_.capacity() * sizeof(Group);
     for (const auto &g : groups_)
       {
         b += bytes(g.state) + g.slot_names.capacity() * sizeof(std::string);

@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/base/parallel.h>
 #include <shard/particles/spg_kernel.h>
 
 #include <algorithm>
@@ -8,6 +9,9 @@ namespace shard::particles
 {
   namespace
   {
+    /// Rows per task of the threaded passes (a fixed partition; each row is written by one task).
+    constexpr unsigned int rows_per_task = 1024;
+
     /// Builds the transposed index of @p m with @p n_columns columns.
     void
     transpose(const CsrView &m, const unsigned int n_columns, std::vector<unsigned int> &offsets,
@@ -137,22 +141,28 @@ namespace shard::particles
   void
   SpgKernel::interpolate(const double *d, double *u) const
   {
-    for (unsigned int j = 0; j < a_.n_rows; ++j)
-      interpolate_row(d, u, j);
+    base::for_each_range(a_.n_rows, rows_per_task, [&](const unsigned int begin, const unsigned int end) {
+      for (unsigned int j = begin; j < end; ++j)
+        interpolate_row(d, u, j);
+    });
   }
 
   void
   SpgKernel::deformation_gradient(const double *u, double *F) const
   {
-    for (unsigned int i = 0; i < g_.n_rows; ++i)
-      deformation_gradient_row(u, F, i);
+    base::for_each_range(g_.n_rows, rows_per_task, [&](const unsigned int begin, const unsigned int end) {
+      for (unsigned int i = begin; i < end; ++i)
+        deformation_gradient_row(u, F, i);
+    });
   }
 
   void
   SpgKernel::gradient_transpose(const double *VP, double *g) const
   {
-    for (unsigned int j = 0; j < a_.n_rows; ++j)
-      gradient_transpose_row(VP, g, j);
+    base::for_each_range(a_.n_rows, rows_per_task, [&](const unsigned int begin, const unsigned int end) {
+      for (unsigned int j = begin; j < end; ++j)
+        gradient_transpose_row(VP, g, j);
+    });
   }
 
   void
@@ -160,8 +170,10 @@ namespace shard::particles
   {
     if (width == 0 || width > 9)
       throw std::invalid_argument("SpgKernel::interpolate_transpose: width must be 1 to 9");
-    for (unsigned int k = 0; k < n_coefficients_; ++k)
-      interpolate_transpose_row(g, f, k, width);
+    base::for_each_range(n_coefficients_, rows_per_task, [&](const unsigned int begin, const unsigned int end) {
+      for (unsigned int k = begin; k < end; ++k)
+        interpolate_transpose_row(g, f, k, width);
+    });
   }
 
   void

@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/base/parallel.h>
 #include <shard/particles/neighbor_build.h>
 #include <shard/particles/spg_operator.h>
 
@@ -12,6 +13,9 @@ namespace shard::particles
 {
   namespace
   {
+    /// Rows per task of the threaded passes (a fixed partition; each row is written by one task).
+    constexpr unsigned int rows_per_task = 1024;
+
     /// Rewrites the columns of @p s through @p map (cloud index -> compact index).
     void
     remap_columns(Stencil &s, const std::vector<unsigned int> &map, const unsigned int n_columns)
@@ -186,20 +190,24 @@ namespace shard::particles
   SpgOperator::subtract_internal_force(const double *VP, double *f) const
   {
     kernel_.internal_force(VP, scratch_k_.data());
-    for (unsigned int k = 0; k < 3 * n_k_; ++k)
-      f[k] -= scratch_k_[k];
+    base::for_each_range(n_k_, rows_per_task, [&](const unsigned int begin, const unsigned int end) {
+      for (unsigned int k = 3 * begin; k < 3 * end; ++k)
+        f[k] -= scratch_k_[k];
+    });
     if (xi_.empty())
       return;
     // Correction sum_I V_I P_I xi_K Psi_K(X_I): one more transposed gather of V P with A.
     std::copy(VP, VP + 9 * n_i_, scratch_j9_.begin());
     kernel_.interpolate_transpose(scratch_j9_.data(), scratch_k9_.data(), 9);
-    for (unsigned int k = 0; k < n_k_; ++k)
-      {
-        const double *q = &scratch_k9_[9 * k];
-        const double *x = &xi_[3 * k];
-        for (unsigned int i = 0; i < 3; ++i)
-          f[3 * k + i] -= q[3 * i] * x[0] + q[3 * i + 1] * x[1] + q[3 * i + 2] * x[2];
-      }
+    base::for_each_range(n_k_, rows_per_task, [&](const unsigned int begin, const unsigned int end) {
+      for (unsigned int k = begin; k < end; ++k)
+        {
+          const double *q = &scratch_k9_[9 * k];
+          const double *x = &xi_[3 * k];
+          for (unsigned int i = 0; i < 3; ++i)
+            f[3 * k + i] -= q[3 * i] * x[0] + q[3 * i + 1] * x[1] + q[3 * i + 2] * x[2];
+        }
+    });
   }
 
   double
@@ -209,8 +217,11 @@ namespace shard::particles
     // w_I = Lambda_I (d_I - (A d)_I) on the owned rows, zero on the other rows J.
     double *w      = scratch_j_.data();
     residual_energy_.resize(n_i_);
-    for (unsigned int i = 0; i < n_i_; ++i)
-      residual_row(a, d, i);
+    base::for_each_range(n_i_, rows_per_task, [&](const unsigned int begin, const unsigned int end) {
+      for (unsigned int i = begin; i < end; ++i)
+        residual_row(a, d, i);
+    });
+    // Summed in row order, whatever the thread count.
     double energy = 0;
     for (unsigned int i = 0; i < n_i_; ++i)
       energy += residual_energy_[i];
@@ -218,10 +229,14 @@ namespace shard::particles
     // f -= alpha (I - A)^T w.
     smoothing_.interpolate_transpose(w, scratch_k_.data(), 3);
     const double alpha = options_.residual_coefficient;
-    for (unsigned int k = 0; k < 3 * n_i_; ++k)
-      f[k] -= alpha * w[k];
-    for (unsigned int k = 0; k < 3 * n_k_; ++k)
-      f[k] += alpha * scratch_k_[k];
+    base::for_each_range(n_k_, rows_per_task, [&](const unsigned int begin, const unsigned int end) {
+      for (unsigned int k = 3 * begin; k < 3 * end; ++k)
+        {
+          if (k < 3 * n_i_)
+            f[k] -= alpha * w[k];
+          f[k] += alpha * scratch_k_[k];
+        }
+    });
     return energy;
   }
 
@@ -343,15 +358,17 @@ namespace shard::particles
   SpgOperator::smooth_owned(const double *in, double *out) const
   {
     const CsrView &a = smoothing_.interpolation();
-    for (unsigned int i = 0; i < n_i_; ++i)
-      {
-        double s[3] = {0, 0, 0};
-        for (unsigned int e = a.offsets[i]; e < a.offsets[i + 1]; ++e)
+    base::for_each_range(n_i_, rows_per_task, [&](const unsigned int begin, const unsigned int end) {
+      for (unsigned int i = begin; i < end; ++i)
+        {
+          double s[3] = {0, 0, 0};
+          for (unsigned int e = a.offsets[i]; e < a.offsets[i + 1]; ++e)
+            for (unsigned int c = 0; c < 3; ++c)
+              s[c] += a.values[e] * in[3 * a.columns[e] + c];
           for (unsigned int c = 0; c < 3; ++c)
-            s[c] += a.values[e] * in[3 * a.columns[e] + c];
-        for (unsigned int c = 0; c < 3; ++c)
-          out[3 * i + c] = s[c];
-      }
+            out[3 * i + c] = s[c];
+        }
+    });
   }
 
   namespace

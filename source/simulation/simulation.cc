@@ -4,6 +4,7 @@
 #include <shard/base/version.h>
 #include <shard/fe/hex_kernel.h>
 #include <shard/base/plot.h>
+#include <shard/base/parallel.h>
 #include <shard/simulation/simulation.h>
 
 #include <deal.II/base/mpi.h>
@@ -233,6 +234,8 @@ namespace shard
       }
     if (rank == 0 && !restarted)
       {
+        std::cerr << "shard: " << Utilities::MPI::n_mpi_processes(comm_) << " MPI rank(s) x " << base::n_threads()
+                  << " thread(s) per rank\n";
         history_.open(output_.directory() + "/history.csv");
         history_ << "time,step,dt,kinetic_energy,internal_energy,hourglass_energy,external_work,boundary_work,"
                     "filter_work,conversion_energy,bond_energy,energy_error,momentum_x,momentum_y,momentum_z,"
@@ -535,7 +538,7 @@ namespace shard
         std::array<double, 11> max_time;
         Utilities::MPI::max(ArrayView<const double>(phase_time_.data(), 11), comm_,
                             ArrayView<double>(max_time.data(), 11));
-        std::cerr << "\nTime per phase (largest over ranks):\n";
+        std::cerr << "\nTime per phase (largest over ranks; " << base::n_threads() << " thread(s) per rank):\n";
         double loop = 0;
         for (unsigned int p = 1; p < 11; ++p)
           loop += max_time[p];
@@ -977,6 +980,7 @@ namespace shard
       }
     j << "  \"correction_iterations\": " << spg_.correction_solve().iterations << ",\n";
     j << "  \"n_mpi_ranks\": " << Utilities::MPI::n_mpi_processes(comm_) << ",\n";
+    j << "  \"n_threads\": " << base::n_threads() << ",\n";
     j << "  \"energy_error\": " << number(energy_error_) << ",\n";
     j << "  \"max_abs_energy_error\": " << number(max_energy_error_) << ",\n";
     const double element_steps = work_steps_[0], particle_steps = work_steps_[1];

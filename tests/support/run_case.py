@@ -28,6 +28,9 @@ is the key that sets the output directory (default `K - Output/directory`; for m
 histories (and fragments.csv, when written) to agree to --rel (default 1e-8) relative to max(|a|, |b|, scale), where the scale of
 an energy column is the largest energy term of the run, of a momentum component the largest
 component, of the energy error 1, and of any other column its largest magnitude.
+--compare-threads A B ... runs at --np ranks with `--threads A`, `--threads B`, ... and requires
+history.csv (and fragments.csv, when written) byte for byte equal to those of the first count, and
+summary.json to report the thread count.
 --expect-exit K and --expect-message REGEX check a run that must fail; when such a run wrote a
 history (an unstable run keeps its output), its .checks, .summary and --expect-file are checked too.
 --expect-file NAME checks
@@ -84,7 +87,7 @@ def crossing(ts, ys, level, first=True):
     return found
 
 
-def run_shard(args, np, outdir, extra_sets=()):
+def run_shard(args, np, outdir, extra_sets=(), threads=None):
     cmd = []
     if np > 0:
         cmd = [args.mpiexec] + args.mpiexec_flags.split() + ["-np", str(np)]
@@ -96,6 +99,10 @@ def run_shard(args, np, outdir, extra_sets=()):
             cmd += ["--set", "K - Output/fragment plots=false"]
     for s in list(args.set or []) + list(extra_sets):
         cmd += ["--set", s]
+    if threads is None:
+        threads = args.threads_argument
+    if threads is not None:
+        cmd += ["--threads", str(threads)]
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                DEAL_II_NUM_THREADS="1")
     p = subprocess.run(cmd, capture_output=True, text=True, env=env)
@@ -290,6 +297,43 @@ def compare_fragments(a, b, rel, failures, case):
     print(f"ok    {case}: fragments agree ({len(da)} rows), largest relative difference {worst:.3g}")
 
 
+def compare_threads(args, tmp, failures, case):
+    """Runs at each count of --compare-threads; the files of the first count are the reference."""
+    dirs = []
+    for n in args.compare_threads:
+        out = os.path.join(tmp, f"threads{n}")
+        p, cmd = run_shard(args, args.np, out, threads=n)
+        if p.returncode != 0:
+            print(p.stdout, p.stderr)
+            raise SystemExit(f"{case}: run at {n} threads failed ({p.returncode}): {' '.join(cmd)}")
+        with open(os.path.join(out, "summary.json")) as f:
+            reported = json.load(f).get("n_threads")
+        if reported != n:
+            failures.append(f"{case}: summary.json reports n_threads = {reported}, expected {n}")
+        dirs.append(out)
+    ref = dirs[0]
+    for n, out in zip(args.compare_threads[1:], dirs[1:]):
+        for name in ("history.csv", "fragments.csv"):
+            a, b = os.path.join(ref, name), os.path.join(out, name)
+            if not os.path.exists(a) and not os.path.exists(b):
+                continue
+            if not (os.path.exists(a) and os.path.exists(b)):
+                failures.append(f"{case}: {name} written at only one of {args.compare_threads[0]} and {n} threads")
+                continue
+            with open(a) as f:
+                la = f.read().splitlines()
+            with open(b) as f:
+                lb = f.read().splitlines()
+            if la == lb:
+                print(f"ok    {case}: {name} identical at {args.compare_threads[0]} and {n} threads "
+                      f"({len(la) - 1} rows)")
+                continue
+            row = next((k for k, (x, y) in enumerate(zip(la, lb)) if x != y), min(len(la), len(lb)))
+            failures.append(f"{case}: {name} differs between {args.compare_threads[0]} and {n} threads "
+                            f"from line {row + 1}:\n  {la[row] if row < len(la) else '<end>'}\n  "
+                            f"{lb[row] if row < len(lb) else '<end>'}")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--shard", required=True)
@@ -301,6 +345,10 @@ def main():
     ap.add_argument("--mpiexec", default="mpiexec")
     ap.add_argument("--mpiexec-flags", default="--allow-run-as-root --oversubscribe")
     ap.add_argument("--compare-ranks", type=int, nargs=2)
+    ap.add_argument("--compare-threads", type=int, nargs="+",
+                    help="run at each thread count (at --np ranks) and require history.csv and "
+                         "fragments.csv byte for byte equal to those of the first count")
+    ap.add_argument("--threads-argument", help="passed as `--threads VALUE` to the run (for the tests of bad values)")
     ap.add_argument("--rel", type=float, default=1e-8)
     ap.add_argument("--set", action="append")
     ap.add_argument("--expect-exit", type=int)
@@ -313,7 +361,9 @@ def main():
     tmp = tempfile.mkdtemp(prefix=f"shard-{case}-")
     failures = []
     try:
-        if args.compare_ranks:
+        if args.compare_threads:
+            compare_threads(args, tmp, failures, case)
+        elif args.compare_ranks:
             dirs = []
             for n in args.compare_ranks:
                 out = os.path.join(tmp, f"np{n}")

@@ -90,6 +90,13 @@ namespace shard::fe
      * @brief Adds the internal nodal forces at the end of the step into @p f (owned and ghost
      * entries; call compress(add) afterwards) and updates stress and history.
      *
+     * Runs on the threads of the rank (base::n_threads()): blocks of consecutive batches of 64
+     * elements of one material, colour by colour, so that the blocks running at the same time
+     * share no node. The force at a node is summed colour by colour and within a block in
+     * element order, and
+     * the energies are summed per batch and then in batch order: the same bits for any thread
+     * count. If elements fail, the exception of the lowest failing batch is thrown.
+     *
      * @param[in] d displacement at the end of the step, ghost values set
      * @param[in] v velocity of the step (mid-step), ghost values set
      * @param[in] dt step size
@@ -250,6 +257,22 @@ namespace shard::fe
     std::vector<double>         q_;          // bulk viscosity pressure of the last evaluation, per element
     std::vector<double>         hourglass_;  // 12 per element: hourglass force per mode and direction (both forms)
     std::vector<Group>          groups_;
+
+    /// Elements [begin, end) of material group @p group: one material call.
+    struct Batch
+    {
+      unsigned int group, begin, end;
+    };
+    std::vector<Batch>        batches_;        // in element order
+    unsigned int              batches_per_block_ = 1;
+    std::vector<unsigned int> block_order_;    // blocks of consecutive batches, colour by colour
+    std::vector<unsigned int> colour_offsets_; // colour c: block_order_[colour_offsets_[c] .. [c + 1])
+
+    /// Cuts the groups into batches, the batches into blocks of consecutive batches, and colours
+    /// the blocks so that no two blocks of one colour share a node (the blocks of a colour
+    /// scatter their forces at the same time).
+    void
+    build_batches();
 
     [[noreturn]] void
     fail(unsigned int e, const mesh::Vector &d, unsigned int step, const std::string &what) const;

@@ -272,6 +272,7 @@ namespace shard::particles
     std::vector<unsigned int>    group_of_;
     std::vector<double>          F_, stress_, q_, density_, length_;
     mutable std::vector<double>  dk_, u_, fk_, Fnew_, VP_;
+    std::vector<double>          work_; // stress and bulk-viscosity work per owned particle of the last step
 
     void
     gather(const mesh::Vector &v, std::vector<double> &out) const;
