@@ -3,12 +3,21 @@
 #include <shard/particles/spg_kernel.h>
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 namespace shard::particles
 {
   namespace
   {
+    /// One term P_a . G of scatter 1, with the roundings spelled out (std::fma), so that the
+    /// gather and the push give the same bits whatever the compiler contracts elsewhere.
+    inline double
+    gradient_term(const double *p, const double *gr)
+    {
+      return std::fma(p[2], gr[2], std::fma(p[1], gr[1], p[0] * gr[0]));
+    }
+
     /// Rows per task of the threaded passes (a fixed partition; each row is written by one task).
     constexpr unsigned int rows_per_task = 1024;
 
@@ -100,7 +109,7 @@ namespace shard::particles
         const double *p  = VP + 9 * gt_rows_[t];
         const double *gr = g_.values + 3 * gt_entries_[t];
         for (unsigned int a = 0; a < 3; ++a)
-          s[a] += p[3 * a] * gr[0] + p[3 * a + 1] * gr[1] + p[3 * a + 2] * gr[2];
+          s[a] += gradient_term(p + 3 * a, gr);
       }
     g[3 * j]     = s[0];
     g[3 * j + 1] = s[1];
@@ -117,9 +126,9 @@ namespace shard::particles
           {
             const double  w  = a_.values[at_entries_[t]];
             const double *gj = g + 3 * at_rows_[t];
-            s0 += w * gj[0];
-            s1 += w * gj[1];
-            s2 += w * gj[2];
+            s0 = std::fma(w, gj[0], s0);
+            s1 = std::fma(w, gj[1], s1);
+            s2 = std::fma(w, gj[2], s2);
           }
         f[3 * k]     = s0;
         f[3 * k + 1] = s1;
@@ -132,7 +141,7 @@ namespace shard::particles
         const double  w  = a_.values[at_entries_[t]];
         const double *gj = g + width * at_rows_[t];
         for (unsigned int c = 0; c < width; ++c)
-          s[c] += w * gj[c];
+          s[c] = std::fma(w, gj[c], s[c]);
       }
     for (unsigned int c = 0; c < width; ++c)
       f[width * k + c] = s[c];
@@ -159,6 +168,27 @@ namespace shard::particles
   void
   SpgKernel::gradient_transpose(const double *VP, double *g) const
   {
+    if (base::n_threads() == 1)
+      {
+        // One thread: a row-wise push, which streams through G instead of reaching every entry
+        // through the transposed index. Each g_J receives its terms in the order of the
+        // transposed index (rows I ascending, then entries), from zero, with the same
+        // roundings (gradient_term, std::fma): bitwise the gather below (test
+        // threads.same_history.*).
+        std::fill(g, g + 3 * a_.n_rows, 0.);
+        for (unsigned int i = 0; i < g_.n_rows; ++i)
+          {
+            const double *p = VP + 9 * i;
+            for (unsigned int e = g_.offsets[i]; e < g_.offsets[i + 1]; ++e)
+              {
+                const double *gr = g_.values + 3 * e;
+                double       *gj = g + 3 * g_.columns[e];
+                for (unsigned int a = 0; a < 3; ++a)
+                  gj[a] += gradient_term(p + 3 * a, gr);
+              }
+          }
+        return;
+      }
     base::for_each_range(a_.n_rows, rows_per_task, [&](const unsigned int begin, const unsigned int end) {
       for (unsigned int j = begin; j < end; ++j)
         gradient_transpose_row(VP, g, j);
@@ -170,6 +200,23 @@ namespace shard::particles
   {
     if (width == 0 || width > 9)
       throw std::invalid_argument("SpgKernel::interpolate_transpose: width must be 1 to 9");
+    if (base::n_threads() == 1)
+      {
+        // One thread: the row-wise push of A^T, bitwise the gather (see gradient_transpose()).
+        std::fill(f, f + width * n_coefficients_, 0.);
+        for (unsigned int j = 0; j < a_.n_rows; ++j)
+          {
+            const double *gj = g + width * j;
+            for (unsigned int e = a_.offsets[j]; e < a_.offsets[j + 1]; ++e)
+              {
+                const double w  = a_.values[e];
+                double      *fk = f + width * a_.columns[e];
+                for (unsigned int c = 0; c < width; ++c)
+                  fk[c] = std::fma(w, gj[c], fk[c]);
+              }
+          }
+        return;
+      }
     base::for_each_range(n_coefficients_, rows_per_task, [&](const unsigned int begin, const unsigned int end) {
       for (unsigned int k = begin; k < end; ++k)
         interpolate_transpose_row(g, f, k, width);
