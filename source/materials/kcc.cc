@@ -852,7 +852,8 @@ namespace shard::materials
                 // Illinois steps inside the bracketing row, where g is smooth up to the EOS and
                 // psi breakpoints.
                 const double d_max = q / three_g;
-                double       ds = 0., gs = q - rp * yc, de_ = d_max, ge = gfun(d_max);
+                double       ds = 0., gs = q - rp * yc, de_ = d_max, ge = 0.;
+                bool         bracketed = false; // g(d_max) is needed only without a row bracket
                 for (std::size_t t = 0; t < n_tab; ++t)
                   {
                     const double lt = k.lambda[t] <= lm ? k.lambda[t] : lm + (k.lambda[t] - lm) * stretch;
@@ -864,13 +865,16 @@ namespace shard::materials
                     const double gt = gfun(dt_);
                     if (gt <= 0.)
                       {
-                        de_ = dt_;
-                        ge  = gt;
+                        de_       = dt_;
+                        ge        = gt;
+                        bracketed = true;
                         break;
                       }
                     ds = dt_;
                     gs = gt;
                   }
+                if (!bracketed)
+                  ge = gfun(d_max);
                 double root = de_;
                 {
                   double a = ds, fa = gs, b = de_, fb = ge;

@@ -207,7 +207,7 @@ namespace shard
   {
     rank_elements_  = Utilities::MPI::all_gather(comm_, double(hex_.n_local_elements()));
     rank_particles_ = Utilities::MPI::all_gather(comm_, double(particles_.active() ? particles_.n_owned() : 0));
-    const double w  = discretization_.particle_weight() > 0 ? discretization_.particle_weight() : 1.8;
+    const double w  = discretization_.particle_weight() > 0 ? discretization_.particle_weight() : 1.5;
     double       largest = 0, total = 0;
     for (unsigned int r = 0; r < rank_elements_.size(); ++r)
       {

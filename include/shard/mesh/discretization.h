@@ -259,7 +259,7 @@ namespace shard::mesh
     MPI_Comm                                                comm_;
     std::vector<std::string>                                body_names_ = {"body"};
     std::string                                             body_names_text_ = "body";
-    double                                                  particle_weight_ = 1.8;
+    double                                                  particle_weight_ = 1.5;
     std::vector<BodyParameters>                             bodies_;
     std::map<std::string, std::unique_ptr<BodyParameters>> declared_;
     dealii::parallel::distributed::Triangulation<3>         triangulation_;
