@@ -111,9 +111,9 @@ namespace shard::mesh
           if (b.shape == "box" && b.grading > 1 && b.element_size > 0)
             {
               // Graded box: uniform cells in the fine core, growing outside it.
-              const auto fl = b.fine_lower_corner.empty() ? std::array<double, 3>{p1[0], p1[1], p1[2]} :
+              const auto fl = b.fine_lower_corner.empty() ? std::array<double, 3>{{p1[0], p1[1], p1[2]}} :
                                                             base::parse_point(b.fine_lower_corner);
-              const auto fu = b.fine_upper_corner.empty() ? std::array<double, 3>{p2[0], p2[1], p2[2]} :
+              const auto fu = b.fine_upper_corner.empty() ? std::array<double, 3>{{p2[0], p2[1], p2[2]}} :
                                                             base::parse_point(b.fine_upper_corner);
               std::vector<std::vector<double>> steps(3);
               for (unsigned int d = 0; d < 3; ++d)
