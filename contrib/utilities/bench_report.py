@@ -20,10 +20,11 @@ import datetime
 import glob
 import json
 import os
-import re
 import statistics
-import subprocess
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from doc_tables import commit_of, machine, replace_marked  # noqa: E402
 
 out, csv_path, md_path = sys.argv[1:4]
 suite_seconds = float(sys.argv[4]) if len(sys.argv) > 4 else None
@@ -37,19 +38,8 @@ for f in sorted(glob.glob(os.path.join(out, "*", "summary.json"))):
     groups.setdefault(name, {})[int(i)] = json.load(open(f))
 rows = sorted(groups, key=lambda n: (ORDER.index(n) if n in ORDER else len(ORDER), n))
 
-cpu = "unknown CPU"
-try:
-    for line in open("/proc/cpuinfo"):
-        if line.startswith("model name"):
-            cpu = line.split(":", 1)[1].strip()
-            break
-except OSError:
-    pass
-try:
-    commit = subprocess.run(["git", "-C", os.path.dirname(os.path.abspath(md_path)), "rev-parse", "--short", "HEAD"],
-                            capture_output=True, text=True).stdout.strip() or "unknown"
-except OSError:
-    commit = "unknown"
+cpu = machine()
+commit = commit_of(md_path)
 version = next((r.get("shard_version", "") for g in groups.values() for r in g.values()), "")
 n_runs = max((len(g) for g in groups.values()), default=0)
 stamp = (f"Measured {datetime.date.today()} on {cpu}, 1 MPI rank, 1 thread, commit {commit} "
@@ -193,10 +183,5 @@ for name in rows:
     t.append(f"| {name.replace('_', ' ')} | {s['runs']} | " + " | ".join(f"{s['phases'][p]:.3f}" for p in phase_cols)
              + " |")
 
-text = open(md_path).read() if os.path.exists(md_path) else "<!-- BENCH BEGIN -->\n<!-- BENCH END -->\n"
-if "<!-- BENCH BEGIN -->" not in text:
-    text += "\n<!-- BENCH BEGIN -->\n<!-- BENCH END -->\n"
-text = re.sub(r"<!-- BENCH BEGIN -->.*<!-- BENCH END -->",
-              lambda _: "<!-- BENCH BEGIN -->\n" + "\n".join(t) + "\n<!-- BENCH END -->", text, flags=re.S)
-open(md_path, "w").write(text)
+replace_marked(md_path, "BENCH", t)
 print("\n".join(t))

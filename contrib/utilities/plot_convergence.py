@@ -12,8 +12,11 @@ tables of the runs and of the fitted rates.
 """
 import csv
 import math
-import re
+import os
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from doc_tables import replace_marked  # noqa: E402
 
 import matplotlib
 matplotlib.use("Agg")
@@ -108,12 +111,7 @@ def main():
         for m in methods:
             lines.append(f"| {m} | {rates[m][0]:.2f} | {rates[m][1]:.2f} |")
         lines += ["", "![Standing wave: error against spacing and against wall time](benchmarks/convergence.png)"]
-        text = open(sys.argv[3]).read()
-        new, n = re.subn(r"<!-- CONVERGENCE BEGIN -->.*<!-- CONVERGENCE END -->",
-                         lambda _: "<!-- CONVERGENCE BEGIN -->\n" + "\n".join(lines) + "\n<!-- CONVERGENCE END -->",
-                         text, flags=re.S)
-        if n:
-            open(sys.argv[3], "w").write(new)
+        if replace_marked(sys.argv[3], "CONVERGENCE", lines, add=False):
             print("updated", sys.argv[3])
 
 

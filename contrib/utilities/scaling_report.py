@@ -13,10 +13,11 @@ import datetime
 import glob
 import json
 import os
-import re
 import statistics
-import subprocess
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from doc_tables import commit_of, machine, replace_marked  # noqa: E402
 
 out, csv_path, md_path = sys.argv[1:4]
 runs = {}
@@ -81,16 +82,8 @@ def fmt(s, f="{:.3f}"):
     return f"{f.format(m)} ({f.format(lo)} to {f.format(hi)})" if m == m else "-"
 
 
-try:
-    commit = subprocess.run(["git", "-C", os.path.dirname(os.path.abspath(md_path)), "rev-parse", "--short", "HEAD"],
-                            capture_output=True, text=True).stdout.strip() or "unknown"
-except OSError:
-    commit = "unknown"
-cpu = "unknown CPU"
-try:
-    cpu = next(l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name"))
-except (OSError, StopIteration):
-    pass
+commit = commit_of(md_path)
+cpu = machine()
 base = runs.get("np1", {})
 any_run = next((r for v in runs.values() for r in v.values()), {})
 phases = {}
@@ -139,15 +132,9 @@ t = [stamp, "",
      "elements per rank | particles per rank |",
      "|---" * 12 + "|"] + rows
 for variant in phases:
-    if True:
-        t += ["", f"Phases per rank, {variant} (s, medians):", "",
-              "| rank | " + " | ".join(STEP) + " |", "|---" * (1 + len(STEP)) + "|"]
-        for k, p in enumerate(phases[variant]):
-            t.append(f"| {k} | " + " | ".join(f"{x:.3f}" for x in p) + " |")
-text = open(md_path).read()
-if "<!-- SCALING BEGIN -->" not in text:
-    text += "\n<!-- SCALING BEGIN -->\n<!-- SCALING END -->\n"
-text = re.sub(r"<!-- SCALING BEGIN -->.*<!-- SCALING END -->",
-              lambda _: "<!-- SCALING BEGIN -->\n" + "\n".join(t) + "\n<!-- SCALING END -->", text, flags=re.S)
-open(md_path, "w").write(text)
+    t += ["", f"Phases per rank, {variant} (s, medians):", "",
+          "| rank | " + " | ".join(STEP) + " |", "|---" * (1 + len(STEP)) + "|"]
+    for k, p in enumerate(phases[variant]):
+        t.append(f"| {k} | " + " | ".join(f"{x:.3f}" for x in p) + " |")
+replace_marked(md_path, "SCALING", t)
 print("\n".join(t))
