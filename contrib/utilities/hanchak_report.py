@@ -28,6 +28,7 @@ import csv
 import json
 import math
 import os
+import re
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -59,7 +60,6 @@ def face_damage(out_dir, z_face):
 
 def parameter(out_dir, path):
     """The value of the key at 'A/B/key' in the run's parameters.prm (None if absent)."""
-    import re
     stack = []
     with open(os.path.join(out_dir, "parameters.prm")) as f:
         for line in f:

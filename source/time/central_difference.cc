@@ -159,12 +159,6 @@ namespace shard::time
         bodies_.push_back(b);
   }
 
-  bool
-  RigidBodies::is_rigid(const unsigned int body) const
-  {
-    return std::find(bodies_.begin(), bodies_.end(), body) != bodies_.end();
-  }
-
   void
   RigidBodies::refresh() const
   {

@@ -40,17 +40,6 @@ namespace shard::time
     prepare(const mesh::Discretization &discretization, const materials::MaterialLibrary &materials,
             const mesh::Vector &mass);
 
-    /// Whether any body is rigid.
-    bool
-    empty() const
-    {
-      return bodies_.empty();
-    }
-
-    /// Whether body @p body is rigid.
-    bool
-    is_rigid(unsigned int body) const;
-
     /**
      * @brief Replaces the velocities of every rigid body's owned nodes by its rigid motion.
      * @param d displacement at the integer step (owned entries)
