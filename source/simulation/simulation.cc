@@ -129,13 +129,14 @@ namespace shard
     for (const auto &cell : discretization_.dof_handler().active_cell_iterators())
       if (cell->is_locally_owned() && conversion_.converted_cells()[cell->active_cell_index()])
         converted[cell->material_id()] = true;
+    const auto &adaptive_bodies = conversion_.adaptive_bodies();
+    const auto  particle_bodies = particles_.body_names();
     for (unsigned int b = 0; b < bodies.size(); ++b)
       {
         if (!materials_.get(bodies[b].material).rigid())
           continue;
-        const bool adaptive = std::count(conversion_.adaptive_bodies().begin(), conversion_.adaptive_bodies().end(), b);
-        const bool any      = Utilities::MPI::max(converted[b] ? 1u : 0u, comm_) > 0;
-        const auto particle_bodies = particles_.body_names();
+        const bool adaptive  = std::count(adaptive_bodies.begin(), adaptive_bodies.end(), b);
+        const bool any       = Utilities::MPI::max(converted[b] ? 1u : 0u, comm_) > 0;
         const bool particles = std::count(particle_bodies.begin(), particle_bodies.end(), bodies[b].name);
         if (any || adaptive)
           source_.fail(particles ? "E - Particles/bodies" : any ? "G - Conversion/regions" : "G - Conversion/adaptive bodies",
@@ -207,7 +208,8 @@ namespace shard
   {
     rank_elements_  = Utilities::MPI::all_gather(comm_, double(hex_.n_local_elements()));
     rank_particles_ = Utilities::MPI::all_gather(comm_, double(particles_.active() ? particles_.n_owned() : 0));
-    const double w  = discretization_.particle_weight() > 0 ? discretization_.particle_weight() : 1.5;
+    const double w  = discretization_.particle_weight() > 0 ? discretization_.particle_weight() :
+                                                                      mesh::Discretization::default_particle_weight;
     double       largest = 0, total = 0;
     for (unsigned int r = 0; r < rank_elements_.size(); ++r)
       {

@@ -155,6 +155,10 @@ namespace shard::mesh
     double
     repartition(const std::vector<bool> &converted_cells);
 
+    /// Default of `B - Mesh/particle weight`: the measured cost of a particle in units of an
+    /// element (phase 6 / phase 5 per item, doc/performance.md "MPI scaling").
+    static constexpr double default_particle_weight = 1.5;
+
     /// `B - Mesh/particle weight`: cost of a particle in units of an element.
     double
     particle_weight() const
@@ -259,7 +263,7 @@ namespace shard::mesh
     MPI_Comm                                                comm_;
     std::vector<std::string>                                body_names_ = {"body"};
     std::string                                             body_names_text_ = "body";
-    double                                                  particle_weight_ = 1.5;
+    double                                                  particle_weight_ = default_particle_weight;
     std::vector<BodyParameters>                             bodies_;
     std::map<std::string, std::unique_ptr<BodyParameters>> declared_;
     dealii::parallel::distributed::Triangulation<3>         triangulation_;
