@@ -57,6 +57,17 @@ namespace shard::materials
     return k_[k] + w * (k_[k + 1] - k_[k]);
   }
 
+  double
+  CompactionEos::modulus_in_segment(const unsigned int k, const double x) const
+  {
+    if (x <= x_.front())
+      return k_.front();
+    if (x >= x_.back())
+      return k_.back();
+    const double w = (x - x_[k]) / (x_[k + 1] - x_[k]);
+    return k_[k] + w * (k_[k + 1] - k_[k]);
+  }
+
   CompactionEos::State
   CompactionEos::evaluate(const double x, const double x_max) const
   {
@@ -66,18 +77,31 @@ namespace shard::materials
         const unsigned int k    = segment(x);
         state.pressure          = p_[k] + slope_[k] * (x - x_[k]);
         state.max_compaction    = x;
-        state.unloading_modulus = unloading_modulus(x);
+        state.unloading_modulus = modulus_in_segment(k, x);
         state.wave_modulus      = std::max(state.unloading_modulus, slope_[k]);
       }
     else
       {
-        const double k_un       = unloading_modulus(x_max);
-        state.pressure          = loading_pressure(x_max) - k_un * (x_max - x);
+        const unsigned int k    = segment(x_max);
+        const double       k_un = modulus_in_segment(k, x_max);
+        state.pressure          = p_[k] + slope_[k] * (x_max - x_[k]) - k_un * (x_max - x);
         state.max_compaction    = x_max;
         state.unloading_modulus = k_un;
         state.wave_modulus      = k_un;
       }
     return state;
+  }
+
+  double
+  CompactionEos::pressure(const double x, const double x_max) const
+  {
+    if (x >= x_max)
+      {
+        const unsigned int k = segment(x);
+        return p_[k] + slope_[k] * (x - x_[k]);
+      }
+    const unsigned int k = segment(x_max);
+    return p_[k] + slope_[k] * (x_max - x_[k]) - modulus_in_segment(k, x_max) * (x_max - x);
   }
 
   double

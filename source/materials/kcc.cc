@@ -499,6 +499,7 @@ namespace shard::materials
   KccConcrete::build_derived()
   {
     eos_.set_table(par_.eos_strain, par_.eos_pressure, par_.eos_modulus);
+    dif_curves_ = default_dif_curves(par_.compressive_strength);
   }
 
   void
@@ -710,26 +711,39 @@ namespace shard::materials
     return 2. - eta(lambda, stretch);
   }
 
+  KccConcrete::DifCurves
+  KccConcrete::default_dif_curves(const double fc)
+  {
+    const double fc10  = fc / 10e6;
+    const double delta = 1. / (1. + 8. * fc10);
+    const double alpha = 1. / (5. + 9. * fc10);
+    return {1.026 * alpha, std::pow(10., 6.156 * alpha - 2.), delta, std::pow(10., 6. * delta - 2.)};
+  }
+
   double
-  KccConcrete::default_dif(const double rate, const double fc, const bool tension)
+  KccConcrete::default_dif(const DifCurves &curves, const double rate, const bool tension)
   {
     if (!(rate > 0.))
       return 1.;
-    const double fc10 = fc / 10e6;
-    double       dif;
+    double dif;
     if (tension)
       {
-        const double delta = 1. / (1. + 8. * fc10);
         const double ratio = rate / 1e-6;
-        dif = rate <= 1. ? std::pow(ratio, delta) : std::pow(10., 6. * delta - 2.) * std::cbrt(ratio);
+        dif = rate <= 1. ? std::pow(ratio, curves.tension_exponent) : curves.tension_factor * std::cbrt(ratio);
       }
     else
       {
-        const double alpha = 1. / (5. + 9. * fc10);
         const double ratio = rate / 30e-6;
-        dif = rate <= 30. ? std::pow(ratio, 1.026 * alpha) : std::pow(10., 6.156 * alpha - 2.) * std::cbrt(ratio);
+        dif = rate <= 30. ? std::pow(ratio, curves.compression_exponent)
+                          : curves.compression_factor * std::cbrt(ratio);
       }
     return std::max(dif, 1.);
+  }
+
+  double
+  KccConcrete::default_dif(const double rate, const double fc, const bool tension)
+  {
+    return default_dif(default_dif_curves(fc), rate, tension);
   }
 
   double
@@ -740,7 +754,7 @@ namespace shard::materials
     const std::vector<double> &r = tension ? par_.dif_t_rate : par_.dif_c_rate;
     double                     dif;
     if (r.empty())
-      dif = default_dif(rate, par_.compressive_strength, tension);
+      dif = default_dif(dif_curves_, rate, tension);
     else
       {
         const std::vector<double> &d = tension ? par_.dif_t : par_.dif_c;
@@ -808,11 +822,16 @@ namespace shard::materials
         const double yc     = current_surface(p, lambda, rf, stretch);
         const double psi_p  = psi(ph);
         double       cos_theta = 1.;
+        bool         have_angle = false; // cos_theta is that of s (scaling keeps the angle)
+        bool         returned   = false; // last_limit is r' Y at the final p and lambda
+        double       last_d     = -1.;
+        double       last_limit = 0.;
         double scale = 1.;
         double dp    = 0.; // increment of effective plastic strain
         if (q > psi_p * yc)
           {
             cos_theta       = cos_lode_angle(s);
+            have_angle      = true;
             const double rp = willam_warnke(cos_theta, psi_p);
             if (q > rp * yc)
               {
@@ -841,12 +860,14 @@ namespace shard::materials
                 const double x_trial = x;
                 const double x_max_n = st[slot_max_compaction];
                 const auto   pressure = [&](const double dd) {
-                  return dilatancy > 0. ? eos_.evaluate(x_trial + dilatancy * dd, x_max_n).pressure : p;
+                  return dilatancy > 0. ? eos_.pressure(x_trial + dilatancy * dd, x_max_n) : p;
                 };
                 const auto gfun = [&](const double dd) {
                   const double pd = pressure(dd);
-                  return q - three_g * dd -
-                         willam_warnke(cos_theta, psi(pd / rf)) * current_surface(pd, lambda + c * dd, rf, stretch);
+                  last_d          = dd;
+                  last_limit =
+                    willam_warnke(cos_theta, psi(pd / rf)) * current_surface(pd, lambda + c * dd, rf, stretch);
+                  return q - three_g * dd - last_limit;
                 };
                 // Bracket: walk the rows of the damage table (eta is linear between them), then
                 // Illinois steps inside the bracketing row, where g is smooth up to the EOS and
@@ -875,44 +896,64 @@ namespace shard::materials
                   }
                 if (!bracketed)
                   ge = gfun(d_max);
+                // Safeguarded secant inside the bracket [a, b] (g(a) > 0 > g(b)): the secant
+                // through the last two iterates when it falls inside, the bisection otherwise or
+                // when |g| did not halve. Regula falsi alone keeps the far end of the bracket and
+                // converges from one side (four to five evaluations to 1e-12 q).
                 double root = de_;
-                {
-                  double a = ds, fa = gs, b = de_, fb = ge;
-                  int    side = 0;
-                  for (unsigned int it = 0; it < 100 && fb < 0.; ++it)
-                    {
-                      root            = (a * fb - b * fa) / (fb - fa);
-                      const double fr = gfun(root);
-                      if (std::abs(fr) <= 1e-12 * q || b - a <= 1e-14 * b)
-                        break;
-                      if (fr > 0.)
-                        {
-                          a  = root;
-                          fa = fr;
-                          if (side == 1)
-                            fb *= 0.5;
-                          side = 1;
-                        }
-                      else
-                        {
-                          b  = root;
-                          fb = fr;
-                          if (side == -1)
-                            fa *= 0.5;
-                          side = -1;
-                        }
-                    }
-                }
+                if (ge < 0.)
+                  {
+                    double a = ds, fa = gs, b = de_, fb = ge;
+                    // The first pair: the bracket ends, the one with the smaller |g| as the later
+                    // iterate, so that the second secant uses it and the first interior point.
+                    const bool a_closer = fa < -fb;
+                    double     x0 = a_closer ? b : a, f0 = a_closer ? fb : fa;
+                    double     x1 = a_closer ? a : b, f1 = a_closer ? fa : fb;
+                    for (unsigned int it = 0; it < 100; ++it)
+                      {
+                        double next = f1 != f0 ? x1 - f1 * (x1 - x0) / (f1 - f0) : 0.5 * (a + b);
+                        if (!(next > a && next < b))
+                          next = 0.5 * (a + b);
+                        const double fr = gfun(next);
+                        root            = next;
+                        if (std::abs(fr) <= 1e-12 * q || b - a <= 1e-14 * b)
+                          break;
+                        (fr > 0. ? a : b)   = next;
+                        (fr > 0. ? fa : fb) = fr;
+                        if (it > 0 && std::abs(fr) > 0.5 * std::abs(f1))
+                          {
+                            // Slow: a bisection point, then secants from it and the far end.
+                            const double mid = 0.5 * (a + b);
+                            const double fm  = gfun(mid);
+                            root             = mid;
+                            if (std::abs(fm) <= 1e-12 * q)
+                              break;
+                            (fm > 0. ? a : b)   = mid;
+                            (fm > 0. ? fa : fb) = fm;
+                            x0                  = fm > 0. ? b : a;
+                            f0                  = fm > 0. ? fb : fa;
+                            x1                  = mid;
+                            f1                  = fm;
+                            continue;
+                          }
+                        x0 = x1;
+                        f0 = f1;
+                        x1 = next;
+                        f1 = fr;
+                      }
+                  }
                 dp     = std::clamp(root, 0., d_max);
                 lambda = lambda + c * dp;
                 scale  = (q - three_g * dp) / q;
                 if (dilatancy > 0.)
                   {
+                    // x as in g(D), so that the final pressure is the one of the last g(D).
                     ev_p += dilatancy * dp;
-                    x   = -(ev - ev_p);
+                    x   = x_trial + dilatancy * dp;
                     eos = eos_.evaluate(x, x_max_n);
                     p   = eos.pressure;
                   }
+                returned = last_d == dp;
               }
           }
         for (unsigned int c = 0; c < n_sym; ++c)
@@ -925,6 +966,7 @@ namespace shard::materials
             const double p_min = tensile_limit(lambda, rf, stretch);
             if (!(p < p_min))
               break;
+            returned = false;
             const double x_cut =
               std::min(eos_.compaction_at_pressure(p_min, eos.max_compaction), eos.max_compaction);
             const double open  = x_cut - x;
@@ -938,14 +980,17 @@ namespace shard::materials
           }
 
         // Keep the final state on or inside the surface at the final pressure (the dilatancy
-        // raised p, which normally leaves the point inside).
+        // raised p, which normally leaves the point inside). After a return whose last g(D) was
+        // at the final D (and no tension cut), that evaluation already holds the limit.
         {
           const double q2 = std::sqrt(1.5 * internal::contract(s, s));
           const double ph2 = p / rf;
-          const double y2 = current_surface(p, lambda, rf, stretch);
-          if (q2 > psi(ph2) * y2)
+          const double y2  = returned ? 0. : current_surface(p, lambda, rf, stretch);
+          if (returned ? q2 > last_limit : q2 > psi(ph2) * y2)
             {
-              const double lim = willam_warnke(cos_lode_angle(s), psi(ph2)) * y2;
+              const double lim =
+                returned ? last_limit
+                         : willam_warnke(have_angle ? cos_theta : cos_lode_angle(s), psi(ph2)) * y2;
               if (q2 > lim)
                 {
                   dp += (q2 - lim) / (3. * g);

@@ -66,6 +66,10 @@ namespace shard::materials
     State
     evaluate(double compaction, double max_compaction) const;
 
+    /// The pressure of evaluate() alone (bitwise the same), for root searches (Pa).
+    double
+    pressure(double compaction, double max_compaction) const;
+
     /// Loading curve C(x) (Pa), continued with the last slope beyond the table.
     double
     loading_pressure(double compaction) const;
@@ -106,6 +110,10 @@ namespace shard::materials
     /// Segment k with x_k <= x < x_{k+1} (0 below the table, last-1 above).
     unsigned int
     segment(double compaction) const;
+
+    /// unloading_modulus() with the segment of @p compaction already known.
+    double
+    modulus_in_segment(unsigned int k, double compaction) const;
 
     std::vector<double> x_;
     std::vector<double> p_;

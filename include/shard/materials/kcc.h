@@ -250,6 +250,27 @@ namespace shard::materials
     default_dif(double rate, double fc, bool tension);
 
   private:
+    /// The constants of the built-in DIF curves for one f'c (powers of f'c computed once).
+    struct DifCurves
+    {
+      /// Compression: DIF = (rate / 30e-6)^compression_exponent up to 30 1/s (1.026 alpha).
+      double compression_exponent;
+      /// Compression above 30 1/s: DIF = compression_factor (rate / 30e-6)^(1/3) (10^(6.156 alpha - 2)).
+      double compression_factor;
+      /// Tension: DIF = (rate / 1e-6)^tension_exponent up to 1 1/s (delta).
+      double tension_exponent;
+      /// Tension above 1 1/s: DIF = tension_factor (rate / 1e-6)^(1/3) (10^(6 delta - 2)).
+      double tension_factor;
+    };
+
+    /// The constants of default_dif() for compressive strength @p fc (Pa).
+    static DifCurves
+    default_dif_curves(double fc);
+
+    /// default_dif() with the constants computed.
+    static double
+    default_dif(const DifCurves &curves, double rate, bool tension);
+
     /// Text keys: "auto" or a value.
     struct Keys
     {
@@ -278,5 +299,6 @@ namespace shard::materials
     KccParameters par_;
     Keys          keys_;
     CompactionEos eos_;
+    DifCurves     dif_curves_{};
   };
 } // namespace shard::materials

@@ -441,6 +441,7 @@ TEST(KccRobustness, RandomIncrementsStayOnOrInsideTheSurface)
       std::normal_distribution<double>       nrm(0., 1.);
       Point        pt       = fresh_point(m);
       unsigned int failures = 0;
+      unsigned int n_plastic = 0;
       for (unsigned int k = 0; k < 50000; ++k)
         {
           if (k % 50 == 0)
@@ -467,6 +468,7 @@ TEST(KccRobustness, RandomIncrementsStayOnOrInsideTheSurface)
           for (double &v : de)
             v *= mag / std::sqrt(norm);
           const double lambda_old = pt.state[KccConcrete::slot_lambda];
+          const double eps_p_old  = pt.state[KccConcrete::slot_plastic_strain];
           const double dt         = std::pow(10., -8. + 4. * u(rng));
           const double h          = 0.1;
           pt                      = advance(m, pt, de, dt, h);
@@ -484,6 +486,14 @@ TEST(KccRobustness, RandomIncrementsStayOnOrInsideTheSurface)
           const double y  = KccConcrete::willam_warnke(KccConcrete::cos_lode_angle(s), m.psi(p / rf)) *
                            m.current_surface(p, lambda, rf);
           ok = ok && q <= y + 1e-6 * std::max(y, m.parameters().tensile_strength);
+          // Consistency: a plastic increment without the tension cut ends on the surface (the
+          // root search stops at |g| <= 1e-12 q; 1e-9 leaves room for the final clamp).
+          const bool plastic = pt.state[KccConcrete::slot_plastic_strain] > eps_p_old;
+          if (plastic && p > m.tensile_limit(lambda, rf) && q > 0.)
+            {
+              ++n_plastic;
+              ok = ok && std::abs(q - y) <= 1e-9 * std::max(y, m.parameters().tensile_strength);
+            }
           // The pressure is the EOS of the stored volumetric state.
           const double ev = pt.strain[0] + pt.strain[1] + pt.strain[2];
           const double x  = -(std::log(std::exp(ev)) - pt.state[KccConcrete::slot_plastic_volume]);
@@ -499,6 +509,7 @@ TEST(KccRobustness, RandomIncrementsStayOnOrInsideTheSurface)
                           << pt.state[KccConcrete::slot_max_compaction] << " x " << x;
         }
       EXPECT_EQ(failures, 0u);
+      EXPECT_GT(n_plastic, 5000u); // the consistency check above saw enough plastic increments
     }
 }
 
