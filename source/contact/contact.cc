@@ -316,6 +316,8 @@ namespace shard::contact
     plane_stamp_.clear();
     planes_.clear();
     best_.assign(nodes_.size(), -1);
+    outside_.assign(nodes_.size(), 1e300);
+    contact_normal_.assign(interactions_.size(), std::vector<double>(3 * nodes_.size(), 0.));
     previous_slaves_.assign(interactions_.size(), {});
     built_ = false;
     node_of_particle_.clear();
@@ -873,6 +875,8 @@ namespace shard::contact
             // Per slave the hit it keeps (index into hits), slaves in the order first hit.
             std::vector<std::pair<SegmentHit, unsigned int>> hits;
             std::vector<unsigned int>                        slaves;
+            // Nodes whose outside_ entry was set this step (reset to 1e300 after the test).
+            std::vector<unsigned int> outside_nodes;
             // Per segment (once per step): the mean plane through its centre, the half width
             // of the slab that holds its four nodes, and whether its four triangles face the
             // same way. A point above that slab, or below it by more than the depth, cannot hit
@@ -913,7 +917,17 @@ namespace shard::contact
                   }
                 const SegmentHit h = point_segment(p, xs, depth);
                 if (!h.hit)
-                  continue;
+                  {
+                    // Outside this face (the projection is on it): remembered for the nearest-
+                    // surface test below.
+                    if (h.projected && h.gap >= 0 && h.gap < outside_[i])
+                      {
+                        if (!(outside_[i] < 1e300))
+                          outside_nodes.push_back(i);
+                        outside_[i] = h.gap;
+                      }
+                    continue;
+                  }
                 if (best_[i] < 0)
                   {
                     best_[i] = static_cast<int>(hits.size());
@@ -923,6 +937,66 @@ namespace shard::contact
                 else if (std::abs(h.gap) < std::abs(hits[best_[i]].first.gap))
                   hits[best_[i]] = {h, g};
               }
+            // A slave whose contact turns to a face of another direction (a corner of the target)
+            // is checked against the nearest surface: if it lies outside some face (its
+            // projection on the face, gap >= 0) by less than it penetrates the new face, it left
+            // the body through that face, and the new hit (found through the edge tolerance) is
+            // not a contact. Without this test a plate node that lifted off the flat end face of a
+            // rigid projectile by a fraction of a micrometre, still within the edge tolerance of a
+            // side face, counted as penetrating the side face by up to the face spacing and was
+            // thrown off at km/s (doc/manual/contact.md, "Corners"). A slave that stays on a face
+            // of its direction keeps it (the aligned edges of two bars: the edge nodes lie on the
+            // side planes of the target and still press its end face). The faces skipped above
+            // for such a slave (above their slab by less than its penetration) are projected here.
+            auto &normal_before = contact_normal_[s];
+            const auto turned   = [&](const unsigned int i) {
+              const Vec3   &n  = hits[best_[i]].first.normal;
+              const double *nb = &normal_before[3 * i];
+              return (nb[0] != 0 || nb[1] != 0 || nb[2] != 0) &&
+                     n[0] * nb[0] + n[1] * nb[1] + n[2] * nb[2] < corner_cosine;
+            };
+            bool any_turned = false;
+            for (const unsigned int i : slaves)
+              any_turned = any_turned || turned(i);
+            if (any_turned)
+              {
+                for (const auto &[i, g] : candidates_[s])
+                  {
+                    if (best_[i] < 0 || !turned(i))
+                      continue;
+                    const double pen = std::min(-hits[best_[i]].first.gap, outside_[i]);
+                    const Plane &pl  = planes_[g];
+                    if (!pl.usable)
+                      continue; // projected above whatever its height
+                    const Vec3   p = position(i);
+                    const double hgt = (p[0] - pl.centre[0]) * pl.normal[0] + (p[1] - pl.centre[1]) * pl.normal[1] +
+                                       (p[2] - pl.centre[2]) * pl.normal[2];
+                    // Only the faces skipped above as clearly outside, and close enough to matter.
+                    if (!(hgt > pl.half_width) || hgt - pl.half_width >= pen)
+                      continue;
+                    const auto         &seg = segments_[g];
+                    std::array<Vec3, 4> xs;
+                    for (unsigned int v = 0; v < 4; ++v)
+                      xs[v] = position(seg.node[v]);
+                    const SegmentHit h = point_segment(p, xs, nodes_[seg.node[0]].spacing);
+                    if (h.projected && h.gap >= 0 && h.gap < outside_[i])
+                      {
+                        if (!(outside_[i] < 1e300))
+                          outside_nodes.push_back(i);
+                        outside_[i] = h.gap;
+                      }
+                  }
+                std::size_t kept = 0;
+                for (const unsigned int i : slaves)
+                  if (turned(i) && outside_[i] < -hits[best_[i]].first.gap)
+                    best_[i] = -1;
+                  else
+                    slaves[kept++] = i;
+                slaves.resize(kept);
+              }
+            for (const unsigned int i : outside_nodes)
+              outside_[i] = 1e300;
+            outside_nodes.clear();
             std::sort(slaves.begin(), slaves.end());
             // A slave that starts a contact already deep (it slid in over the edge of a face)
             // keeps that entry depth as an offset while the contact lasts, so that no energy
@@ -936,6 +1010,11 @@ namespace shard::contact
                 const double now = -hits[best_[i]].first.gap;
                 depth[i]         = depth[i] < 0 ? now : std::min(depth[i], now);
               }
+            for (const unsigned int i : previous_slaves_[s])
+              if (best_[i] < 0)
+                std::fill_n(&normal_before[3 * i], 3, 0.);
+            for (const unsigned int i : slaves)
+              std::copy_n(hits[best_[i]].first.normal.begin(), 3, &normal_before[3 * i]);
             previous_slaves_[s] = slaves;
             for (const unsigned int i : slaves)
               {
@@ -1014,6 +1093,7 @@ namespace shard::contact
     out.put(offset_);
     out.put(entry_depth_);
     out.put(previous_slaves_);
+    out.put(contact_normal_);
     out.put(best_);
     out.put(last_build_);
     out.put(built_);
@@ -1050,6 +1130,7 @@ namespace shard::contact
     in.get(offset_);
     in.get(entry_depth_);
     in.get(previous_slaves_);
+    in.get(contact_normal_);
     in.get(best_);
     in.get(last_build_);
     in.get(built_);
@@ -1069,7 +1150,8 @@ namespace shard::contact
     for (const auto &n : nodes_)
       p.keys.push_back(key_of_node(n.dof / 3));
     p.force       = force_;
-    p.entry_depth = entry_depth_;
+    p.entry_depth    = entry_depth_;
+    p.contact_normal = contact_normal_;
     for (const auto &slaves : previous_slaves_)
       {
         p.previous_slaves.emplace_back();
@@ -1119,7 +1201,8 @@ namespace shard::contact
       return it->second;
     };
     const auto &first = states.front();
-    if (first.keys.size() != nodes_.size() || first.entry_depth.size() != interactions_.size())
+    if (first.keys.size() != nodes_.size() || first.entry_depth.size() != interactions_.size() ||
+        first.contact_normal.size() != interactions_.size())
       throw std::runtime_error("the contact nodes of the checkpoint differ from this scene's");
     for (std::size_t k = 0; k < first.keys.size(); ++k)
       {
@@ -1127,7 +1210,11 @@ namespace shard::contact
         for (unsigned int c = 0; c < 3; ++c)
           force_[3 * i + c] = first.force[3 * k + c];
         for (unsigned int s = 0; s < interactions_.size(); ++s)
-          entry_depth_[s][i] = first.entry_depth[s][k];
+          {
+            entry_depth_[s][i] = first.entry_depth[s][k];
+            for (unsigned int c = 0; c < 3; ++c)
+              contact_normal_[s][3 * i + c] = first.contact_normal[s][3 * k + c];
+          }
       }
     for (unsigned int s = 0; s < interactions_.size(); ++s)
       {

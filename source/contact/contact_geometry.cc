@@ -85,7 +85,8 @@ namespace shard::contact
         result.weights[b] += lb;
       }
 
-    result.hit = found && -max_depth < result.gap && result.gap < 0.0;
+    result.projected = found;
+    result.hit       = found && -max_depth < result.gap && result.gap < 0.0;
     return result;
   }
 

@@ -26,7 +26,8 @@ namespace shard::output
 
   namespace
   {
-    constexpr const char *magic = "shard checkpoint 1";
+    // 2: the contact state carries the contact normals of node-to-surface slaves.
+    constexpr const char *magic = "shard checkpoint 2";
 
     std::uint64_t
     fnv1a(const std::string &data)

@@ -136,7 +136,7 @@ namespace shard::contact
 
     /**
      * @brief Checkpoint: writes what this rank carries from step to step (candidate and
-     * dormant pair lists, penetration offsets and entry depths, positions and forces of the
+     * dormant pair lists, penetration offsets, entry depths and contact normals, positions and forces of the
      * last step, build positions and reaches, the bond news seen, counters and energies).
      * The node order depends on the partition, so load() needs the same rank count.
      */
@@ -163,6 +163,8 @@ namespace shard::contact
       /// Per interaction: entry depth per node (m; -1 none) and the slaves of the last step.
       std::vector<std::vector<double>>             entry_depth;
       std::vector<std::vector<unsigned long long>> previous_slaves;
+      /// Per interaction, 3 per node: the contact normal of the last step (0 out of contact).
+      std::vector<std::vector<double>> contact_normal;
       /// Per interaction: particle pairs (keys) with the overlap offset they keep (m).
       std::vector<std::vector<std::pair<unsigned long long, unsigned long long>>> pairs;
       std::vector<std::vector<double>>                                            offsets;
@@ -179,7 +181,7 @@ namespace shard::contact
       serialize(IO &&io)
       {
         io(keys), io(force), io(entry_depth), io(previous_slaves), io(pairs), io(offsets), io(owned_keys);
-        io(x_old), io(last_build), io(n_rebuilds), io(energy), io(friction_energy);
+        io(x_old), io(last_build), io(n_rebuilds), io(energy), io(friction_energy), io(contact_normal);
       }
     };
 
@@ -297,8 +299,20 @@ namespace shard::contact
     std::vector<std::vector<double>> entry_depth_;
     /// Per node-to-surface interaction: the slaves in contact at the last step.
     std::vector<std::vector<unsigned int>> previous_slaves_;
+    /// Per node-to-surface interaction, 3 per node: the unit normal of the face a slave was in
+    /// contact with at the last step, (0, 0, 0) out of contact. A slave whose contact turns
+    /// (cosine below corner_cosine) is checked against the nearest surface (outside_).
+    std::vector<std::vector<double>> contact_normal_;
+    /// Cosine of the turn of the contact normal in one step above which the nearest-surface
+    /// test applies: a face of another direction (a corner of the target; the sides of a
+    /// 16-sided cylinder differ by 22.5 degrees, cosine 0.92), not the same face turning.
+    static constexpr double corner_cosine = 0.99;
     /// Work space: per node the index of its kept hit, -1 for none.
     std::vector<int> best_;
+    /// Work space: per node the smallest gap >= 0 of a face it lies outside of (its projection
+    /// on the face) in this step (m); 1e300 for none. A slave outside a face by less than it
+    /// penetrates its kept face is not in contact (the nearest surface decides).
+    std::vector<double> outside_;
     unsigned int                                          last_build_ = 0;
     bool                                                  built_      = false;
     unsigned int                                          n_rebuilds_ = 0;

@@ -27,13 +27,17 @@ namespace shard::contact
    * @brief Result of a point against one quadrilateral contact segment (see point_segment()).
    *
    * When no triangle of the segment has a projection that counts as on it, all members keep their
-   * default values (hit false, gap 0, normal and weights zero). When a projection counts but the
-   * gap is outside (-max_depth, 0), hit is false and the other members describe that projection.
+   * default values (hit and projected false, gap 0, normal and weights zero). When a projection
+   * counts but the gap is outside (-max_depth, 0), hit is false, projected true and the other
+   * members describe that projection.
    */
   struct SegmentHit
   {
     /// True when the point penetrates: -max_depth < gap < 0 and the projection lies on the segment.
     bool hit = false;
+    /// True when the projection lies on the segment (any gap); gap, normal and weights then
+    /// describe it.
+    bool projected = false;
     /// Signed normal distance @f$ (p - q)\cdot n @f$ in m; negative means penetration.
     double gap = 0;
     /// Unit outward normal (dimensionless) of the triangle that was hit.

@@ -146,7 +146,12 @@ TEST(ContactGeometry, PointSegmentMisses)
   // Above the segment (gap > 0): the projection is reported, but no hit.
   const SegmentHit above = point_segment(v3(0.3, 0.6, 0.01), x, 0.1);
   EXPECT_FALSE(above.hit);
+  EXPECT_TRUE(above.projected);
   EXPECT_NEAR(above.gap, 0.01, 1e-14);
+  // Deeper than max_depth: projected, no hit; beside the square: neither.
+  EXPECT_TRUE(point_segment(v3(0.3, 0.6, -0.2), x, 0.1).projected);
+  EXPECT_FALSE(point_segment(v3(1.5, 0.5, -0.01), x, 0.1).projected);
+  EXPECT_TRUE(point_segment(v3(0.3, 0.6, -0.01), x, 0.1).projected);
   // Deeper than max_depth.
   EXPECT_FALSE(point_segment(v3(0.3, 0.6, -0.2), x, 0.1).hit);
   EXPECT_TRUE(point_segment(v3(0.3, 0.6, -0.09), x, 0.1).hit);
@@ -165,6 +170,32 @@ TEST(ContactGeometry, PointSegmentMisses)
   // A fully degenerate segment never hits.
   const std::array<Vec3, 4> point_quad = {{v3(1, 1, 1), v3(1, 1, 1), v3(1, 1, 1), v3(1, 1, 1)}};
   EXPECT_FALSE(point_segment(v3(1, 1, 0.99), point_quad, 0.1).hit);
+}
+
+// The corner of a box: the end face z = 0 (outward normal -z) and the side face x = 1 (outward
+// +x). A point just outside the end face (z = -1e-6, below it) and 0.4 inside the side face lies
+// within the edge tolerance of the side face's lower edge: the side face reports a penetration
+// of 0.4, the end face that the point is outside by 1e-6. Only the nearest of the two is the
+// truth (the point is outside the box): Contact compares them (the nearest surface decides).
+TEST(ContactGeometry, PointSegmentBoxCornerNearestSurface)
+{
+  // End face: the unit square seen from below (clockwise from above, normal -z).
+  const auto                end  = unit_square();
+  const std::array<Vec3, 4> down = {{end[0], end[3], end[2], end[1]}};
+  // Side face x = 1 for 0 <= y <= 1, 0 <= z <= 1, counter-clockwise seen from +x.
+  const std::array<Vec3, 4> side = {{v3(1, 0, 0), v3(1, 1, 0), v3(1, 1, 1), v3(1, 0, 1)}};
+  const Vec3                p    = v3(0.6, 0.5, -1e-6);
+  const SegmentHit          e    = point_segment(p, down, 1.0);
+  EXPECT_FALSE(e.hit);
+  EXPECT_TRUE(e.projected);
+  EXPECT_NEAR(e.gap, 1e-6, 1e-15);
+  const SegmentHit s = point_segment(p, side, 1.0);
+  EXPECT_TRUE(s.hit);
+  EXPECT_NEAR(s.gap, -0.4, 1e-14);
+  expect_vec_near(s.normal, v3(1, 0, 0), 1e-15);
+  EXPECT_LT(std::abs(e.gap), std::abs(s.gap));
+  // Beyond the edge tolerance below the side face the side face no longer counts.
+  EXPECT_FALSE(point_segment(v3(0.6, 0.5, -0.01), side, 1.0).projected);
 }
 
 TEST(ContactGeometry, PointSegmentEdgesAndCentroid)
