@@ -870,7 +870,7 @@ namespace shard::materials
                   return q - three_g * dd - last_limit;
                 };
                 // Bracket: walk the rows of the damage table (eta is linear between them), then
-                // Illinois steps inside the bracketing row, where g is smooth up to the EOS and
+                // secant steps inside the bracketing row, where g is smooth up to the EOS and
                 // psi breakpoints.
                 const double d_max = q / three_g;
                 double       ds = 0., gs = q - rp * yc, de_ = d_max, ge = 0.;
