@@ -48,13 +48,7 @@ namespace shard::materials
   double
   CompactionEos::unloading_modulus(const double x) const
   {
-    if (x <= x_.front())
-      return k_.front();
-    if (x >= x_.back())
-      return k_.back();
-    const unsigned int k = segment(x);
-    const double       w = (x - x_[k]) / (x_[k + 1] - x_[k]);
-    return k_[k] + w * (k_[k + 1] - k_[k]);
+    return modulus_in_segment(segment(x), x);
   }
 
   double
