@@ -30,6 +30,10 @@ namespace shard::output
                       "Simulated time between field outputs (PVTU); 0 writes the first and last step only. "
                       "Unit: s. Range: >= 0.",
                       Patterns::Double(0));
+    prm.add_parameter("fields", fields_,
+                      "Whether the run writes field files (PVTU/PVD of the mesh and the particles) at all; "
+                      "false keeps history.csv, summary.json and the fragment tables only (benchmarks, "
+                      "sweeps).");
     prm.add_parameter("history interval", history_interval_,
                       "Steps between rows of history.csv. Unit: 1. Range: >= 1.", Patterns::Integer(1));
     prm.add_parameter("progress interval", progress_interval_,
@@ -73,6 +77,8 @@ namespace shard::output
   void
   FieldOutput::write(const double time, const mesh::Vector &d, const mesh::Vector &v)
   {
+    if (!fields_)
+      return;
     const auto        &dh   = discretization_->dof_handler();
     const auto         comm = discretization_->communicator();
     const unsigned int n    = discretization_->triangulation().n_active_cells();

@@ -134,6 +134,11 @@ def check_files(args, outdir, case, failures):
         print(("ok    " if ok else "FAIL  ") + f"{case}: wrote {name}")
         if not ok:
             failures.append(f"{case}: {name} was not written")
+    for name in args.expect_no_file or []:
+        ok = not os.path.exists(os.path.join(outdir, name))
+        print(("ok    " if ok else "FAIL  ") + f"{case}: did not write {name}")
+        if not ok:
+            failures.append(f"{case}: {name} was written")
 
 
 def check_case(args, outdir, failures):
@@ -355,6 +360,8 @@ def main():
     ap.add_argument("--expect-message")
     ap.add_argument("--expect-file", action="append",
                     help="a file the run must write into its output directory (e.g. fragments.png)")
+    ap.add_argument("--expect-no-file", action="append",
+                    help="a file the run must not write into its output directory")
     ap.add_argument("--keep", action="store_true")
     args = ap.parse_args()
     case = os.path.basename(case_base(args))

@@ -77,6 +77,7 @@ namespace shard::output
      * @brief Writes the fields at @p time: the mesh series solution.pvd and, with particles,
      * the point series particles.pvd (positions X + u, physical displacement u, coefficient
      * velocity, stress, von Mises stress, plastic strain, failed, material, rank).
+     * Writes nothing with `K - Output/fields = false`.
      * @p d (physical displacement) and @p v must have ghost values set.
      * @note Collective.
      */
@@ -111,6 +112,7 @@ namespace shard::output
     unsigned int history_interval_  = 1;
     double       progress_interval_ = 2.;
     bool         fragment_plots_    = true;
+    bool         fields_            = true;
     bool         declared_          = false;
 
     const mesh::Discretization                *discretization_ = nullptr;
