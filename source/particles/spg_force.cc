@@ -216,6 +216,8 @@ namespace shard::particles
       }
     if (options_.correction == Correction::consistent)
       prepare_consistent_correction(particles);
+    // The correction rewrote G in place: the gathers' copies in transposed order follow it.
+    op_.copy_transposed_values();
   }
 
   void
@@ -339,6 +341,7 @@ namespace shard::particles
   {
     if (!active_)
       return 0.;
+    op_.copy_transposed_values(a_rows, g_rows);
     const std::vector<double> old = fk_;
     const auto                update_vp = [&](const unsigned int i) {
       double       Fi[9];

@@ -63,6 +63,59 @@ namespace shard::particles
     transpose(a_, n_coefficients, at_offsets_, at_rows_, at_entries_);
     transpose(g_, a_.n_rows, gt_offsets_, gt_rows_, gt_entries_);
     g_scratch_.assign(3 * a_.n_rows, 0.);
+    at_values_.clear();
+    gt_values_.clear();
+    at_slot_.clear();
+    gt_slot_.clear();
+    copy_transposed_values();
+  }
+
+  void
+  SpgKernel::copy_transposed_values()
+  {
+    if (base::n_threads() == 1)
+      return;
+    const std::size_t n_a = at_entries_.size(), n_g = gt_entries_.size();
+    at_values_.resize(n_a);
+    gt_values_.resize(3 * n_g);
+    at_slot_.resize(n_a);
+    gt_slot_.resize(n_g);
+    for (std::size_t t = 0; t < n_a; ++t)
+      {
+        at_slot_[at_entries_[t]] = static_cast<unsigned int>(t);
+        at_values_[t]            = a_.values[at_entries_[t]];
+      }
+    for (std::size_t t = 0; t < n_g; ++t)
+      {
+        gt_slot_[gt_entries_[t]] = static_cast<unsigned int>(t);
+        for (unsigned int c = 0; c < 3; ++c)
+          gt_values_[3 * t + c] = g_.values[3 * std::size_t(gt_entries_[t]) + c];
+      }
+  }
+
+  void
+  SpgKernel::copy_transposed_values(const std::vector<unsigned int> &a_rows, const std::vector<unsigned int> &g_rows)
+  {
+    if (at_values_.empty() && gt_values_.empty())
+      return;
+    for (const unsigned int r : a_rows)
+      if (r < a_.n_rows)
+        for (unsigned int e = a_.offsets[r]; e < a_.offsets[r + 1]; ++e)
+          at_values_[at_slot_[e]] = a_.values[e];
+    for (const unsigned int r : g_rows)
+      if (r < g_.n_rows)
+        for (unsigned int e = g_.offsets[r]; e < g_.offsets[r + 1]; ++e)
+          for (unsigned int c = 0; c < 3; ++c)
+            gt_values_[3 * std::size_t(gt_slot_[e]) + c] = g_.values[3 * std::size_t(e) + c];
+  }
+
+  std::size_t
+  SpgKernel::memory_consumption() const
+  {
+    const auto bytes = [](const auto &v) { return v.capacity() * sizeof(v[0]); };
+    return bytes(at_offsets_) + bytes(at_rows_) + bytes(at_entries_) + bytes(gt_offsets_) + bytes(gt_rows_) +
+           bytes(gt_entries_) + bytes(at_values_) + bytes(gt_values_) + bytes(at_slot_) + bytes(gt_slot_) +
+           bytes(g_scratch_) + bytes(mark_);
   }
 
   // The per-row sums below serve both the full passes and the passes over listed rows, so a
@@ -104,10 +157,11 @@ namespace shard::particles
   SpgKernel::gradient_transpose_row(const double *VP, double *g, const unsigned int j) const
   {
     double s[3] = {0, 0, 0};
+    const double *copy = gt_values_.empty() ? nullptr : gt_values_.data();
     for (unsigned int t = gt_offsets_[j]; t < gt_offsets_[j + 1]; ++t)
       {
         const double *p  = VP + 9 * gt_rows_[t];
-        const double *gr = g_.values + 3 * gt_entries_[t];
+        const double *gr = copy != nullptr ? copy + 3 * std::size_t(t) : g_.values + 3 * std::size_t(gt_entries_[t]);
         for (unsigned int a = 0; a < 3; ++a)
           s[a] += gradient_term(p + 3 * a, gr);
       }
@@ -119,12 +173,13 @@ namespace shard::particles
   inline void
   SpgKernel::interpolate_transpose_row(const double *g, double *f, const unsigned int k, const unsigned int width) const
   {
+    const double *copy = at_values_.empty() ? nullptr : at_values_.data();
     if (width == 3)
       {
         double s0 = 0, s1 = 0, s2 = 0;
         for (unsigned int t = at_offsets_[k]; t < at_offsets_[k + 1]; ++t)
           {
-            const double  w  = a_.values[at_entries_[t]];
+            const double  w  = copy != nullptr ? copy[t] : a_.values[at_entries_[t]];
             const double *gj = g + 3 * at_rows_[t];
             s0 = std::fma(w, gj[0], s0);
             s1 = std::fma(w, gj[1], s1);
@@ -138,7 +193,7 @@ namespace shard::particles
     double s[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
     for (unsigned int t = at_offsets_[k]; t < at_offsets_[k + 1]; ++t)
       {
-        const double  w  = a_.values[at_entries_[t]];
+        const double  w  = copy != nullptr ? copy[t] : a_.values[at_entries_[t]];
         const double *gj = g + width * at_rows_[t];
         for (unsigned int c = 0; c < width; ++c)
           s[c] = std::fma(w, gj[c], s[c]);

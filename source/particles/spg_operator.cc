@@ -256,6 +256,20 @@ namespace shard::particles
     residual_energy_[i] = energy;
   }
 
+  void
+  SpgOperator::copy_transposed_values()
+  {
+    kernel_.copy_transposed_values();
+    smoothing_.copy_transposed_values();
+  }
+
+  void
+  SpgOperator::copy_transposed_values(const std::vector<unsigned int> &a_rows, const std::vector<unsigned int> &g_rows)
+  {
+    kernel_.copy_transposed_values(a_rows, g_rows);
+    smoothing_.copy_transposed_values(a_rows, g_rows);
+  }
+
   double
   SpgOperator::refresh_internal_force(const double *d, double *u, double *F, double *VP,
                                       const std::function<void(unsigned int)> &update_vp, double *f,
@@ -389,25 +403,6 @@ namespace shard::particles
              vector_bytes(s.fallback) + vector_bytes(s.rcond);
     }
 
-    /// Bytes of the transposed index and scatter scratch SpgKernel::reinit() allocates for one
-    /// stencil view with @p n_columns columns (offsets, rows and entries; see spg_kernel.cc).
-    std::size_t
-    transposed_bytes(const CsrView &m, const unsigned int n_columns)
-    {
-      if (m.offsets == nullptr) // not initialized
-        return 0;
-      return (std::size_t(n_columns) + 1 + 2 * std::size_t(m.offsets[m.n_rows])) * sizeof(unsigned int);
-    }
-
-    std::size_t
-    kernel_bytes(const SpgKernel &k)
-    {
-      const CsrView &a = k.interpolation();
-      if (a.offsets == nullptr)
-        return 0;
-      return transposed_bytes(a, k.n_coefficients()) + transposed_bytes(k.smoothing_gradient(), a.n_rows) +
-             3 * std::size_t(a.n_rows) * sizeof(double);
-    }
   } // namespace
 
   std::size_t
@@ -420,7 +415,7 @@ namespace shard::particles
   SpgOperator::memory_consumption() const
   {
     return sizeof(*this) + vector_bytes(identity_offsets_) + vector_bytes(identity_columns_) +
-           vector_bytes(identity_values_) + kernel_bytes(kernel_) + kernel_bytes(smoothing_) + vector_bytes(lambda_) +
+           vector_bytes(identity_values_) + kernel_.memory_consumption() + smoothing_.memory_consumption() + vector_bytes(lambda_) +
            vector_bytes(xi_) + vector_bytes(scratch_j_) + vector_bytes(scratch_j9_) +
            vector_bytes(scratch_k_) + vector_bytes(scratch_k9_);
   }

@@ -94,6 +94,24 @@ namespace shard::particles
     interpolate_transpose(const double *g, double *f, const std::vector<unsigned int> &rows, unsigned int width) const;
     /// @}
 
+    /**
+     * @brief Copies the values of A and G into the order of the transposed indices, so that
+     * the gathers of scatters 1 and 2 (run at two or more threads) stream through them instead
+     * of reaching every value through the index. The gathers compute the same terms in the same
+     * order as without the copies (bitwise the same results). Called by reinit() when more
+     * than one thread runs; call it again after values of A or G changed in place: without
+     * arguments for all rows, or with the rows that changed (@p a_rows of A, @p g_rows of G).
+     * Does nothing at one thread (the push of scatters 1 and 2 streams through A and G).
+     */
+    void
+    copy_transposed_values();
+    void
+    copy_transposed_values(const std::vector<unsigned int> &a_rows, const std::vector<unsigned int> &g_rows);
+
+    /// Bytes of the transposed indices, the value copies and the scratch.
+    std::size_t
+    memory_consumption() const;
+
     /// Columns K of the rows @p rows of A (sorted, no duplicates).
     std::vector<unsigned int>
     interpolation_columns(const std::vector<unsigned int> &rows) const;
@@ -163,6 +181,10 @@ namespace shard::particles
     // Transposed indices: for column c, the entries (row, entry index) that reference it.
     std::vector<unsigned int> at_offsets_, at_rows_, at_entries_;
     std::vector<unsigned int> gt_offsets_, gt_rows_, gt_entries_;
+    // With more than one thread: the values in transposed order (1 per A entry, 3 per G entry)
+    // and the slot of each forward entry in it (for the update of changed rows).
+    std::vector<double>       at_values_, gt_values_;
+    std::vector<unsigned int> at_slot_, gt_slot_;
     // Scratch of scatter 1.
     mutable std::vector<double> g_scratch_;
     // Scratch marks of the index-set queries.

@@ -184,6 +184,16 @@ namespace shard::particles
     integration_terms(const double *volume, const double *area_vector, double *c, double *b, double *w) const;
 
     /**
+     * @brief Refreshes the value copies of the gathers (SpgKernel::copy_transposed_values) of
+     * both kernels: all rows, or the rows @p a_rows of A and @p g_rows of G that changed in
+     * place. Call before the next evaluation after the stencil values changed.
+     */
+    void
+    copy_transposed_values();
+    void
+    copy_transposed_values(const std::vector<unsigned int> &a_rows, const std::vector<unsigned int> &g_rows);
+
+    /**
      * @brief After the rows @p a_rows of A and @p g_rows of G changed in place (bonds broke),
      * recomputes only what depends on them: u of the changed A rows, F of the points that read
      * a changed row, their V P (through @p update_vp), the g of the particles those points
