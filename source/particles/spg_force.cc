@@ -173,6 +173,7 @@ namespace shard::particles
         lambda[i]      = particles.volume(i) * m->density() * c * c / (a * a);
       }
     op_.reinit(st, options_, lambda);
+    volume_factor_.assign(n, 1.);
     dk_.assign(3 * st.n_k, 0.);
     fk_.assign(3 * st.n_k, 0.);
     u_.assign(3 * st.n_j, 0.);
@@ -297,6 +298,7 @@ namespace shard::particles
         p.volume = particles_->volume(i);
         p.q      = q_[i];
         p.jacobian = jacobian(i);
+        p.volume_factor = volume_factor_[i];
         std::copy(&stress_[6 * i], &stress_[6 * i] + 6, p.stress.begin());
         p.state.assign(state(i), state(i) + groups_[group_of_[i]].n_slots);
         out.emplace(particles_->global_id(i), std::move(p));
@@ -343,10 +345,19 @@ namespace shard::particles
       return 0.;
     op_.copy_transposed_values(a_rows, g_rows);
     const std::vector<double> old = fk_;
-    const auto                update_vp = [&](const unsigned int i) {
+    // det F before the new rows act, for the volume factors (J = c det F continuous).
+    std::vector<double> det_before(n_owned()), factor_before(volume_factor_);
+    for (unsigned int i = 0; i < n_owned(); ++i)
+      {
+        double Fi[9];
+        det_before[i] = invert(&F_[9 * i], Fi);
+      }
+    const auto update_vp = [&](const unsigned int i) {
       double       Fi[9];
-      const double J = invert(&F_[9 * i], Fi);
-      volume_times_piola(&stress_[6 * i], q_[i], Fi, particles_->volume(i) * J, &VP_[9 * i]);
+      const double det = invert(&F_[9 * i], Fi);
+      if (det != det_before[i] && det > 0)
+        volume_factor_[i] = factor_before[i] * det_before[i] / det;
+      volume_times_piola(&stress_[6 * i], q_[i], Fi, particles_->volume(i) * volume_factor_[i] * det, &VP_[9 * i]);
     };
     if (evaluated_)
       {
@@ -380,7 +391,7 @@ namespace shard::particles
   SpgForce::jacobian(const unsigned int i) const
   {
     double inv[9];
-    return invert(&F_[9 * i], inv);
+    return volume_factor_[i] * invert(&F_[9 * i], inv);
   }
 
   double
@@ -525,8 +536,8 @@ namespace shard::particles
           double             Fm[9], Fm_inv[9], L[9];
           for (unsigned int a = 0; a < 9; ++a)
             Fm[a] = 0.5 * (Fo[a] + Fn[a]);
-          const double det_m = invert(Fm, Fm_inv);
-          J[k]               = invert(Fn, &F_inv[9 * k]);
+          const double det_m = volume_factor_[i] * invert(Fm, Fm_inv);
+          J[k]               = volume_factor_[i] * invert(Fn, &F_inv[9 * k]);
           if (!(J[k] > 0) || !(det_m > 0))
             fail(i, step, "inverted particle (det F = " + std::to_string(J[k]) + ")");
           // dt L = (F_new - F_old) F_mid^-1.

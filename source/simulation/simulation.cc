@@ -867,6 +867,14 @@ namespace shard
     d_.update_ghost_values();
     v_.update_ghost_values();
     stabilization_energy_ = spg_.reset_deformation(d_);
+    // The particles that existed keep their relative volume J = c det F across the new
+    // stencils (SpgForce::volume_factor); new particles start at c = 1.
+    for (unsigned int i = 0; i < spg_.n_owned(); ++i)
+      {
+        const auto it = saved.find(particles_.global_id(i));
+        if (it != saved.end() && spg_.jacobian(i) > 0)
+          spg_.set_volume_factor(i, it->second.jacobian / spg_.jacobian(i));
+      }
     for (const unsigned int i : received)
       energy[1] += elastic_energy_density(spg_.material(i), spg_.stress(i), spg_.jacobian(i)) * particles_.volume(i);
 
@@ -1243,6 +1251,7 @@ namespace shard
           r.particle_values.insert(r.particle_values.end(), p.stress.begin(), p.stress.end());
           r.particle_values.push_back(p.q);
           r.particle_values.insert(r.particle_values.end(), p.state.begin(), p.state.end());
+          r.particle_values.push_back(p.volume_factor);
           r.particle_offsets.push_back(r.particle_values.size());
         }
     r.has_contact = contact_.active();
@@ -1433,10 +1442,13 @@ namespace shard
             const auto   &s = ranks[it->second.first];
             const auto    k = it->second.second;
             const double *x = &s.particle_values[s.particle_offsets[k]];
-            if (s.particle_offsets[k + 1] - s.particle_offsets[k] != 7 + spg_.material(i).n_state_slots())
+            const unsigned int n_slots = spg_.material(i).n_state_slots();
+            // stress (6), q, history, volume factor
+            if (s.particle_offsets[k + 1] - s.particle_offsets[k] != 8 + n_slots)
               throw std::runtime_error("particle at node " + std::to_string(key_i) +
                                        " has another number of history values");
             spg_.set_state(i, x, x + 7, x[6]);
+            spg_.set_volume_factor(i, x[7 + n_slots]);
           }
         d_.update_ghost_values();
         v_.update_ghost_values();

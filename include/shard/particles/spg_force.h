@@ -65,8 +65,10 @@ namespace shard::particles
       double volume = 0;
       /// Bulk viscosity of the last step (Pa).
       double q = 0;
-      /// det F of the last force evaluation (1).
+      /// Relative volume J = c det F of the last force evaluation (1).
       double jacobian = 1;
+      /// Volume factor c (1), see volume_factor().
+      double volume_factor = 1;
       /// Cauchy stress (Pa).
       std::array<double, 6> stress{};
       /// History slots (material order).
@@ -107,9 +109,31 @@ namespace shard::particles
     double
     refresh_forces(const mesh::Vector &d, mesh::Vector &delta, const std::vector<unsigned int> &a_rows,
                    const std::vector<unsigned int> &g_rows);
-    /// det F of owned particle @p i at the last force evaluation or reset_deformation() (1).
+    /// Relative volume J = c_I det F of owned particle @p i at the last force evaluation or
+    /// reset_deformation() (1); c_I is the volume factor below.
     double
     jacobian(unsigned int i) const;
+
+    /**
+     * @brief Volume factor c_I of owned particle @p i (1 at set-up). When bonds break, the
+     * rebuilt rows give another F at the same coefficients; c_I takes the jump of det F, so
+     * that the relative volume J = c_I det F the material sees (pressure, density, volume of
+     * the force) stays continuous across the rebuild and the stored elastic energy does not
+     * jump (doc/manual/failure.md).
+     */
+    double
+    volume_factor(unsigned int i) const
+    {
+      return volume_factor_[i];
+    }
+
+    /// Sets the volume factor of owned particle @p i (restart).
+    void
+    set_volume_factor(unsigned int i, double c)
+    {
+      volume_factor_[i] = c;
+      evaluated_        = false;
+    }
 
     /// Stable step estimate from the stored F and the initial wave speed (s). @note Collective.
     double
@@ -271,6 +295,7 @@ namespace shard::particles
     std::vector<Group>           groups_;
     std::vector<unsigned int>    group_of_;
     std::vector<double>          F_, stress_, q_, density_, length_;
+    std::vector<double>          volume_factor_; // c_I: J = c_I det F (jumps of det F at rebuilt rows)
     mutable std::vector<double>  dk_, u_, fk_, Fnew_, VP_;
     std::vector<double>          work_; // stress and bulk-viscosity work per owned particle of the last step
 
