@@ -345,8 +345,9 @@ namespace shard::particles
       return 0.;
     op_.copy_transposed_values(a_rows, g_rows);
     const std::vector<double> old = fk_;
-    // det F before the new rows act, for the volume factors (J = c det F continuous).
-    std::vector<double> det_before(n_owned()), factor_before(volume_factor_);
+    // det F before the new rows act, for the volume factors (J = c det F continuous; update_vp
+    // runs once per particle).
+    std::vector<double> det_before(n_owned());
     for (unsigned int i = 0; i < n_owned(); ++i)
       {
         double Fi[9];
@@ -356,7 +357,7 @@ namespace shard::particles
       double       Fi[9];
       const double det = invert(&F_[9 * i], Fi);
       if (det != det_before[i] && det > 0)
-        volume_factor_[i] = factor_before[i] * det_before[i] / det;
+        volume_factor_[i] *= det_before[i] / det;
       volume_times_piola(&stress_[6 * i], q_[i], Fi, particles_->volume(i) * volume_factor_[i] * det, &VP_[9 * i]);
     };
     if (evaluated_)

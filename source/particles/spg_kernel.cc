@@ -67,30 +67,30 @@ namespace shard::particles
     gt_values_.clear();
     at_slot_.clear();
     gt_slot_.clear();
+    if (base::n_threads() > 1)
+      {
+        // The slot of every forward entry in the transposed order (structure only).
+        const std::size_t n_a = at_entries_.size(), n_g = gt_entries_.size();
+        at_values_.resize(n_a);
+        gt_values_.resize(3 * n_g);
+        at_slot_.resize(n_a);
+        gt_slot_.resize(n_g);
+        for (std::size_t t = 0; t < n_a; ++t)
+          at_slot_[at_entries_[t]] = static_cast<unsigned int>(t);
+        for (std::size_t t = 0; t < n_g; ++t)
+          gt_slot_[gt_entries_[t]] = static_cast<unsigned int>(t);
+      }
     copy_transposed_values();
   }
 
   void
   SpgKernel::copy_transposed_values()
   {
-    if (base::n_threads() == 1)
-      return;
-    const std::size_t n_a = at_entries_.size(), n_g = gt_entries_.size();
-    at_values_.resize(n_a);
-    gt_values_.resize(3 * n_g);
-    at_slot_.resize(n_a);
-    gt_slot_.resize(n_g);
-    for (std::size_t t = 0; t < n_a; ++t)
-      {
-        at_slot_[at_entries_[t]] = static_cast<unsigned int>(t);
-        at_values_[t]            = a_.values[at_entries_[t]];
-      }
-    for (std::size_t t = 0; t < n_g; ++t)
-      {
-        gt_slot_[gt_entries_[t]] = static_cast<unsigned int>(t);
-        for (unsigned int c = 0; c < 3; ++c)
-          gt_values_[3 * t + c] = g_.values[3 * std::size_t(gt_entries_[t]) + c];
-      }
+    for (std::size_t t = 0; t < at_values_.size(); ++t)
+      at_values_[t] = a_.values[at_entries_[t]];
+    for (std::size_t t = 0; t < gt_slot_.size(); ++t)
+      for (unsigned int c = 0; c < 3; ++c)
+        gt_values_[3 * t + c] = g_.values[3 * std::size_t(gt_entries_[t]) + c];
   }
 
   void

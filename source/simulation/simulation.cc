@@ -871,9 +871,10 @@ namespace shard
     // stencils (SpgForce::volume_factor); new particles start at c = 1.
     for (unsigned int i = 0; i < spg_.n_owned(); ++i)
       {
-        const auto it = saved.find(particles_.global_id(i));
-        if (it != saved.end() && spg_.jacobian(i) > 0)
-          spg_.set_volume_factor(i, it->second.jacobian / spg_.jacobian(i));
+        const auto   it = saved.find(particles_.global_id(i));
+        const double j  = spg_.jacobian(i);
+        if (it != saved.end() && j > 0)
+          spg_.set_volume_factor(i, it->second.jacobian / j);
       }
     for (const unsigned int i : received)
       energy[1] += elastic_energy_density(spg_.material(i), spg_.stress(i), spg_.jacobian(i)) * particles_.volume(i);

@@ -67,7 +67,7 @@ namespace shard::particles
       double q = 0;
       /// Relative volume J = c det F of the last force evaluation (1).
       double jacobian = 1;
-      /// Volume factor c (1), see volume_factor().
+      /// Volume factor c (1), see set_volume_factor().
       double volume_factor = 1;
       /// Cauchy stress (Pa).
       std::array<double, 6> stress{};
@@ -115,19 +115,12 @@ namespace shard::particles
     jacobian(unsigned int i) const;
 
     /**
-     * @brief Volume factor c_I of owned particle @p i (1 at set-up). When bonds break, the
-     * rebuilt rows give another F at the same coefficients; c_I takes the jump of det F, so
-     * that the relative volume J = c_I det F the material sees (pressure, density, volume of
-     * the force) stays continuous across the rebuild and the stored elastic energy does not
-     * jump (doc/manual/failure.md).
+     * @brief Sets the volume factor c_I of owned particle @p i (restart, conversion). c_I is 1
+     * at set-up. When bonds break, the rebuilt rows give another F at the same coefficients;
+     * c_I takes the jump of det F, so that the relative volume J = c_I det F the material sees
+     * (pressure, density, volume of the force) stays continuous across the rebuild and the
+     * stored elastic energy does not jump (doc/manual/failure.md).
      */
-    double
-    volume_factor(unsigned int i) const
-    {
-      return volume_factor_[i];
-    }
-
-    /// Sets the volume factor of owned particle @p i (restart).
     void
     set_volume_factor(unsigned int i, double c)
     {
