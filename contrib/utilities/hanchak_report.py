@@ -6,6 +6,8 @@
                                                        front crater, scab, fragments
     hanchak_report.py sweep CSV PNG [--tests FILE]     Recht-Ipson fit of residual_velocity.csv and
                                                        the plot (numpy, matplotlib)
+    hanchak_report.py force PNG OUTPUT_DIR[=LABEL] ... the projectile's resisting force against the
+                                                       tip depth, with the cavity-expansion estimate
 
 Definitions of one run (slab 178 mm thick between z = -0.178 and 0, shot along -z):
   residual velocity  the projectile's mean velocity -v_z at the end of the run if its tail
@@ -19,6 +21,19 @@ Definitions of one run (slab 178 mm thick between z = -0.178 and 0, shot along -
              largest distance from the shot line;
   fragments  from fragments.csv at the last output: count, the slab (heaviest), the debris
              (everything but the slab and the projectile), its largest piece and fastest speed.
+
+Resisting force: F = -m dv/dt of the projectile (m = 0.500 kg), the velocity difference over
+windows of one particle spacing of tip travel, against the tip depth. The estimate is the
+empirical cavity-expansion model of Forrestal et al. (1994, IJIE 15, 395-405) for an ogive nose:
+F = c z in the crater region (tip depth z < 2 a), F = pi a^2 (S f'c + N* rho V^2) in the tunnel,
+with N* = (8 psi - 1) / (24 psi^2) for the nose calibre radius psi (Forrestal et al. 1996, IJIE 18,
+465-476) and S = 82.6 (f'c / MPa)^-0.544 (Frew et al. 1998, IJIE 21, 489-497); c makes F
+continuous at z = 2 a. It holds for semi-infinite targets: in the slab it applies from about 2 a
+deep until the rear-face release (roughly the last three calibres), so it is a yardstick of the
+resistance a model offers while the nose is embedded, not a prediction of the residual velocity.
+With --von-mises Y,E,NU (a target of elastic-perfectly plastic material) the tunnel force is the
+spherical cavity expansion of Hill (1950) with a compressible elastic zone (Forrestal and Luk 1988),
+sigma_s = (2/3) Y (1 + ln(E / (3 (1 - nu) Y))), plus 1.5 N* rho V^2: F = pi a^2 (sigma_s + 1.5 N* rho V^2).
 
 Recht-Ipson: v_r = a (v_s^p - v_bl^p)^(1/p) for v_s > v_bl, else 0; a, p and v_bl are fitted by
 least squares on every run (a in closed form for each (v_bl, p) of a grid search).
@@ -165,6 +180,73 @@ def sweep(csv_path, png, tests):
     return {"a": a, "p": p, "ballistic_limit": vbl, "rms": rms}
 
 
+MASS, RADIUS, CRH, RHO, FC = 0.500, 0.0127, 3.0, 2440.0, 48e6
+
+
+def forrestal_force(depth, v, fc=FC, rho=RHO, a=RADIUS, psi=CRH, von_mises=None):
+    """Resisting force (N) of the cavity-expansion model at tip depth (m) and speed (m/s): the
+    empirical concrete model, or with von_mises = (Y, E, nu) the elastic-perfectly plastic one."""
+    n = (8 * psi - 1) / (24 * psi ** 2)
+    if von_mises:
+        y, e, nu = von_mises
+        static, dynamic = 2 / 3 * y * (1 + math.log(e / (3 * (1 - nu) * y))), 1.5 * n * rho * v * v
+    else:
+        static, dynamic = 82.6 * (fc / 1e6) ** -0.544 * fc, n * rho * v * v
+    tunnel = math.pi * a * a * (static + dynamic)
+    return tunnel * min(depth / (2 * a), 1.0) if 0 < depth <= -REAR else 0.0
+
+
+def resisting_force(out_dir, window=SPACING):
+    """[(tip depth, speed, force)] of one run: -m dv/dt over windows of `window` tip travel."""
+    rows = history(out_dir)
+    t = [float(r["time"]) for r in rows]
+    v = [-float(r["v_projectile"]) for r in rows]
+    depth = [-float(r["tip_z"]) for r in rows]
+    out, j = [], 0
+    for i in range(1, len(rows)):
+        if depth[i] - depth[j] >= window and t[i] > t[j]:
+            out.append((0.5 * (depth[i] + depth[j]), 0.5 * (v[i] + v[j]), MASS * (v[j] - v[i]) / (t[i] - t[j])))
+            j = i
+    return out
+
+
+def force(png, runs, von_mises=None):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    result = {}
+    for k, spec in enumerate(runs):
+        out_dir, _, label = spec.partition("=")
+        label = label or os.path.basename(os.path.normpath(out_dir))
+        f = resisting_force(out_dir)
+        color = f"C{k}"
+        ax.plot([d * 1e3 for d, _, _ in f], [x / 1e3 for _, _, x in f], "-", color=color, label=label)
+        ax.plot([d * 1e3 for d, _, _ in f], [forrestal_force(d, v, von_mises=von_mises) / 1e3 for d, v, _ in f], ":", color=color)
+        # The mean over the tunnel region (2 a to 100 mm deep) against the estimate there.
+        tun = [(d, v, x) for d, v, x in f if 2 * RADIUS <= d <= 0.1]
+        print(f"{label:30s} deepest tip {max(d for d, _, _ in f) * 1e3:.0f} mm, force there {f[-1][2] / 1e3:.1f} kN, "
+              f"estimate {forrestal_force(f[-1][0], f[-1][1], von_mises=von_mises) / 1e3:.1f} kN")
+        if tun:
+            model = sum(x for _, _, x in tun) / len(tun)
+            est = sum(forrestal_force(d, v, von_mises=von_mises) for d, v, _ in tun) / len(tun)
+            result[label] = {"tunnel_force": model, "estimate": est, "ratio": model / est}
+            print(f"{label:30s} mean force 25-100 mm deep {model / 1e3:7.1f} kN, estimate {est / 1e3:7.1f} kN, "
+                  f"ratio {model / est:.2f}")
+        else:
+            print(f"{label:30s} tip not yet {2 * RADIUS * 1e3:.0f} mm deep")
+    ax.axvline(REAR * -1e3, color="grey", lw=0.8)
+    ax.set_xlabel("tip depth (mm)")
+    ax.set_ylabel("resisting force (kN)")
+    ax.set_xlim(0, None)
+    ax.set_title("Projectile force: shard (solid), cavity-expansion estimate (dotted)", fontsize=9)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(png, dpi=130)
+    return result
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -176,8 +258,15 @@ def main():
     s.add_argument("png")
     s.add_argument("--tests", help="CSV of test points (striking_velocity, residual_velocity, source)")
     s.add_argument("--json")
+    g = sub.add_parser("force")
+    g.add_argument("png")
+    g.add_argument("runs", nargs="+", help="OUTPUT_DIR or OUTPUT_DIR=LABEL")
+    g.add_argument("--json")
+    g.add_argument("--von-mises", help="Y,E,NU of an elastic-perfectly plastic target (Pa, Pa, 1)")
     args = ap.parse_args()
-    res = run_report(args.out_dir) if args.cmd == "run" else sweep(args.csv, args.png, args.tests)
+    res = (run_report(args.out_dir) if args.cmd == "run" else
+           sweep(args.csv, args.png, args.tests) if args.cmd == "sweep" else
+           force(args.png, args.runs, [float(x) for x in args.von_mises.split(",")] if args.von_mises else None))
     if args.cmd == "run":
         for k, v in res.items():
             print(f"  {k:24s} {v}")
