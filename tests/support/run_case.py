@@ -9,10 +9,10 @@ A case is a directory holding <case>.prm, or a path <case>.prm; beside the .prm 
   <case>.tolerances  CSV: column,abs,rel  -- a value passes when |x - r| <= abs + rel * |r|.
   <case>.checks      JSON list of derived checks on the history:
                        {"name", "type", "column", ..., "expected", "rel" | "abs", "source"}
-                     types: mean (from, to), first_crossing (level), last_crossing (level),
+                     types: mean (from, to), change (from, to), first_crossing (level), last_crossing (level),
                             max_abs (optional from), final, max, min, growth (from, to),
                             relative_drift (max |y - y(0)| / |y(0)|); optional "scale" multiplies the value.
-  (.checks types: mean, first_crossing, last_crossing, max_abs, max, min, final, relative_drift,
+  (.checks types: mean, change (y(to) - y(from), interpolated), first_crossing, last_crossing, max_abs, max, min, final, relative_drift,
    max_filtered (largest centred moving average over "window" s), duration (first to last row
    above "level"), growth)
   <case>.summary     JSON list of checks on summary.json: {"key", "expected", "rel" | "abs"};
@@ -194,6 +194,9 @@ def check_case(args, outdir, failures):
                 # Time from the first to the last row where the column exceeds "level".
                 on = [t for t, y in zip(ts, ys) if y > c["level"]]
                 value = on[-1] - on[0] if on else 0.0
+            elif kind == "change":
+                # y(to) - y(from), both interpolated linearly between the history rows.
+                value = interpolate(ts, ys, c["to"]) - interpolate(ts, ys, c["from"])
             elif kind == "growth":
                 # Largest |y| after "from" over the largest |y| up to "to" (no growth: <= 1).
                 late = max(abs(y) for t, y in zip(ts, ys) if t >= c["from"])
