@@ -220,6 +220,9 @@ def force(png, runs, von_mises=None):
         out_dir, _, label = spec.partition("=")
         label = label or os.path.basename(os.path.normpath(out_dir))
         f = resisting_force(out_dir)
+        if not f:
+            print(f"{label:30s} the tip has not travelled one window ({SPACING * 1e3:.0f} mm)")
+            continue
         color = f"C{k}"
         ax.plot([d * 1e3 for d, _, _ in f], [x / 1e3 for _, _, x in f], "-", color=color, label=label)
         ax.plot([d * 1e3 for d, _, _ in f], [forrestal_force(d, v, von_mises=von_mises) / 1e3 for d, v, _ in f], ":", color=color)
