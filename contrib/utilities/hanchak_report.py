@@ -20,7 +20,9 @@ Definitions of one run (slab 178 mm thick between z = -0.178 and 0, shot along -
              volume / half a layer) as the diameter of the circle of that area, and their
              largest distance from the shot line;
   fragments  from fragments.csv at the last output: count, the slab (heaviest), the debris
-             (everything but the slab and the projectile), its largest piece and fastest speed.
+             (everything but the slab and the projectile), its largest piece and fastest speed;
+  tunnel force  the mean resisting force (below) with the tip 2 a to 100 mm deep, the
+             cavity-expansion estimate there for the run's f'c and rho, and their ratio.
 
 Resisting force: F = -m dv/dt of the projectile (m = 0.500 kg), the velocity difference over
 windows of one particle spacing of tip travel, against the tip depth. The estimate is the
@@ -50,6 +52,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from shard_output import last_fragments, last_pieces, read_vtu  # noqa: E402
 
 REAR, FRONT, SPACING = -0.178, 0.0, 0.006
+# Projectile mass (kg), radius (m), nose calibre radius; concrete density and strength of the scene.
+MASS, RADIUS, CRH, RHO, FC = 0.500, 0.0127, 3.0, 2440.0, 48e6
 
 
 def history(out_dir):
@@ -123,7 +127,21 @@ def run_report(out_dir):
         "bond_criterion": parameter(out_dir, "E - Particles/bond failure/concrete/criterion"),
         "bond_threshold": parameter(out_dir, "E - Particles/bond failure/concrete/threshold"),
         "projectile_material": parameter(out_dir, "B - Mesh/projectile/material"),
+        **tunnel_force(out_dir),
     }
+
+
+def tunnel_force(out_dir):
+    """Mean resisting force with the tip 2 a to 100 mm deep and the cavity-expansion estimate there
+    (f'c and rho of the run's material 'concrete' when it has them); None when the tip did not get there."""
+    fc = float(parameter(out_dir, "C - Materials/concrete/compressive strength") or FC)
+    rho = float(parameter(out_dir, "C - Materials/concrete/density") or RHO)
+    f = [(d, v, x) for d, v, x in resisting_force(out_dir) if 2 * RADIUS <= d <= 0.1]
+    if not f:
+        return {"tunnel_force": None, "tunnel_force_estimate": None, "tunnel_force_ratio": None}
+    model = sum(x for _, _, x in f) / len(f)
+    est = sum(forrestal_force(d, v, fc=fc, rho=rho) for d, v, _ in f) / len(f)
+    return {"tunnel_force": model, "tunnel_force_estimate": est, "tunnel_force_ratio": model / est}
 
 
 def recht_ipson(vs, vr):
@@ -179,8 +197,6 @@ def sweep(csv_path, png, tests):
     fig.savefig(png, dpi=130)
     return {"a": a, "p": p, "ballistic_limit": vbl, "rms": rms}
 
-
-MASS, RADIUS, CRH, RHO, FC = 0.500, 0.0127, 3.0, 2440.0, 48e6
 
 
 def forrestal_force(depth, v, fc=FC, rho=RHO, a=RADIUS, psi=CRH, von_mises=None):
