@@ -35,6 +35,9 @@ shard_build() {
   cmake --build "$SHARD_BUILD" -j "$jobs" "$@"
 }
 
+# ccache (CMakeLists.txt uses it when present) hashes paths below the checkout relative to it, so a
+# fresh clone elsewhere (CI, contrib/test from a clean clone) reuses the objects of an earlier build.
+export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$SHARD_ROOT}" CCACHE_NOHASHDIR="${CCACHE_NOHASHDIR:-true}"
 # Open MPI refuses to run as root unless told; CI and containers run as root.
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 # One thread per MPI rank (deal.II/TBB): results do not depend on the thread count.
