@@ -9,12 +9,13 @@ A case is a directory holding <case>.prm, or a path <case>.prm; beside the .prm 
   <case>.tolerances  CSV: column,abs,rel  -- a value passes when |x - r| <= abs + rel * |r|.
   <case>.checks      JSON list of derived checks on the history:
                        {"name", "type", "column", ..., "expected", "rel" | "abs", "source"}
-                     types: mean (from, to), change (from, to), first_crossing (level), last_crossing (level),
+                     types: mean (from, to), change (from, to), first_crossing (level),
+                            last_crossing (level),
                             max_abs (optional from), final, max, min, growth (from, to),
                             relative_drift (max |y - y(0)| / |y(0)|); optional "scale" multiplies the value.
-  (.checks types: mean, change (y(to) - y(from), interpolated), first_crossing, last_crossing, max_abs, max, min, final, relative_drift,
-   max_filtered (largest centred moving average over "window" s), duration (first to last row
-   above "level"), growth)
+  (.checks types: mean, change (y(to) - y(from), interpolated), first_crossing, last_crossing,
+   max_abs, max, min, final, relative_drift, max_filtered (largest centred moving average over
+   "window" s), duration (first to last row above "level"), growth)
   <case>.summary     JSON list of checks on summary.json: {"key", "expected", "rel" | "abs"};
                      a key "a/b" looks into object a (run: "results/x"; material-test:
                      "final_state/effective plastic strain"); "expected_key" instead of
