@@ -57,8 +57,9 @@ MASS, RADIUS, CRH, RHO, FC = 0.500, 0.0127, 3.0, 2440.0, 48e6
 
 
 def history(out_dir):
+    """The rows of history.csv; a row still being written by a running shard is left out."""
     with open(os.path.join(out_dir, "history.csv")) as f:
-        return list(csv.DictReader(f))
+        return [r for r in csv.DictReader(f) if None not in r.values()]
 
 
 def face_damage(out_dir, z_face):
