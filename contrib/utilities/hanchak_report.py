@@ -137,11 +137,10 @@ def tunnel_force(out_dir):
     (f'c and rho of the run's material 'concrete' when it has them); None when the tip did not get there."""
     fc = float(parameter(out_dir, "C - Materials/concrete/compressive strength") or FC)
     rho = float(parameter(out_dir, "C - Materials/concrete/density") or RHO)
-    f = [(d, v, x) for d, v, x in resisting_force(out_dir) if 2 * RADIUS <= d <= 0.1]
-    if not f:
+    mean = tunnel_mean(resisting_force(out_dir), fc=fc, rho=rho)
+    if mean is None:
         return {"tunnel_force": None, "tunnel_force_estimate": None, "tunnel_force_ratio": None}
-    model = sum(x for _, _, x in f) / len(f)
-    est = sum(forrestal_force(d, v, fc=fc, rho=rho) for d, v, _ in f) / len(f)
+    model, est = mean
     return {"tunnel_force": model, "tunnel_force_estimate": est, "tunnel_force_ratio": model / est}
 
 
@@ -227,6 +226,15 @@ def resisting_force(out_dir, window=SPACING):
     return out
 
 
+def tunnel_mean(f, **estimate):
+    """(mean force, mean estimate) over the windows of f with the tip 2 a to 100 mm deep; None if
+    there are none. `estimate` goes to forrestal_force (fc, rho, von_mises)."""
+    tun = [(d, v, x) for d, v, x in f if 2 * RADIUS <= d <= 0.1]
+    if not tun:
+        return None
+    return (sum(x for _, _, x in tun) / len(tun), sum(forrestal_force(d, v, **estimate) for d, v, _ in tun) / len(tun))
+
+
 def force(png, runs, von_mises=None):
     import matplotlib
     matplotlib.use("Agg")
@@ -244,12 +252,11 @@ def force(png, runs, von_mises=None):
         ax.plot([d * 1e3 for d, _, _ in f], [x / 1e3 for _, _, x in f], "-", color=color, label=label)
         ax.plot([d * 1e3 for d, _, _ in f], [forrestal_force(d, v, von_mises=von_mises) / 1e3 for d, v, _ in f], ":", color=color)
         # The mean over the tunnel region (2 a to 100 mm deep) against the estimate there.
-        tun = [(d, v, x) for d, v, x in f if 2 * RADIUS <= d <= 0.1]
+        mean = tunnel_mean(f, von_mises=von_mises)
         print(f"{label:30s} deepest tip {max(d for d, _, _ in f) * 1e3:.0f} mm, force there {f[-1][2] / 1e3:.1f} kN, "
               f"estimate {forrestal_force(f[-1][0], f[-1][1], von_mises=von_mises) / 1e3:.1f} kN")
-        if tun:
-            model = sum(x for _, _, x in tun) / len(tun)
-            est = sum(forrestal_force(d, v, von_mises=von_mises) for d, v, _ in tun) / len(tun)
+        if mean:
+            model, est = mean
             result[label] = {"tunnel_force": model, "estimate": est, "ratio": model / est}
             print(f"{label:30s} mean force 25-100 mm deep {model / 1e3:7.1f} kN, estimate {est / 1e3:7.1f} kN, "
                   f"ratio {model / est:.2f}")
