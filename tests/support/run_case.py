@@ -34,6 +34,7 @@ history.csv (and fragments.csv, when written) byte for byte equal to those of th
 summary.json to report the thread count.
 --expect-exit K and --expect-message REGEX check a run that must fail; when such a run wrote a
 history (an unstable run keeps its output), its .checks, .summary and --expect-file are checked too.
+--checks FILE adds the checks of FILE to those of <case>.checks (a variant of a scene run with --set).
 --expect-file NAME checks
 that the run wrote NAME into its output directory (and turns the fragment plots on).
 A failure prints case, column or check, row and both values, and exits 1.
@@ -161,9 +162,11 @@ def check_case(args, outdir, failures):
                 a, r = tol[name]
                 value = interpolate(ts, column(header, data, name), t)
                 check_value(failures, case, f"{name} at t={t:g}", value, expected, a, r, k + 1)
-    if os.path.exists(base + ".checks"):
-        with open(base + ".checks") as f:
-            checks = json.load(f)
+    checks = []
+    for path in [base + ".checks"] * os.path.exists(base + ".checks") + (args.checks or []):
+        with open(path) as f:
+            checks += json.load(f)
+    if checks:
         for c in checks:
             ys = [y * c.get("scale", 1.0) for y in column(header, data, c["column"])]
             kind = c["type"]
@@ -360,6 +363,8 @@ def main():
     ap.add_argument("--threads-argument", help="passed as `--threads VALUE` to the run (for the tests of bad values)")
     ap.add_argument("--rel", type=float, default=1e-8)
     ap.add_argument("--set", action="append")
+    ap.add_argument("--checks", action="append",
+                    help="a further .checks file, applied after the case's own (a variant of a scene run with --set)")
     ap.add_argument("--expect-exit", type=int)
     ap.add_argument("--expect-message")
     ap.add_argument("--expect-file", action="append",
