@@ -132,12 +132,19 @@ def run_report(out_dir):
     }
 
 
-def tunnel_force(out_dir):
+def estimate_parameters(out_dir, von_mises=None):
+    """The keyword arguments of forrestal_force for a run: f'c and rho of its material 'concrete'
+    when it has them (the scene's otherwise), and von_mises as given."""
+    return {"fc": float(parameter(out_dir, "C - Materials/concrete/compressive strength") or FC),
+            "rho": float(parameter(out_dir, "C - Materials/concrete/density") or RHO),
+            "von_mises": von_mises}
+
+
+def tunnel_force(out_dir, f=None, von_mises=None):
     """Mean resisting force with the tip 2 a to 100 mm deep and the cavity-expansion estimate there
-    (f'c and rho of the run's material 'concrete' when it has them); None when the tip did not get there."""
-    fc = float(parameter(out_dir, "C - Materials/concrete/compressive strength") or FC)
-    rho = float(parameter(out_dir, "C - Materials/concrete/density") or RHO)
-    mean = tunnel_mean(resisting_force(out_dir), fc=fc, rho=rho)
+    (estimate_parameters); None when the tip did not get there. @p f: resisting_force(out_dir)
+    when already read."""
+    mean = tunnel_mean(resisting_force(out_dir) if f is None else f, **estimate_parameters(out_dir, von_mises))
     if mean is None:
         return {"tunnel_force": None, "tunnel_force_estimate": None, "tunnel_force_ratio": None}
     model, est = mean
@@ -249,17 +256,17 @@ def force(png, runs, von_mises=None):
             print(f"{label:30s} the tip has not travelled one window ({SPACING * 1e3:.0f} mm)")
             continue
         color = f"C{k}"
+        est = estimate_parameters(out_dir, von_mises)
         ax.plot([d * 1e3 for d, _, _ in f], [x / 1e3 for _, _, x in f], "-", color=color, label=label)
-        ax.plot([d * 1e3 for d, _, _ in f], [forrestal_force(d, v, von_mises=von_mises) / 1e3 for d, v, _ in f], ":", color=color)
-        # The mean over the tunnel region (2 a to 100 mm deep) against the estimate there.
-        mean = tunnel_mean(f, von_mises=von_mises)
+        ax.plot([d * 1e3 for d, _, _ in f], [forrestal_force(d, v, **est) / 1e3 for d, v, _ in f], ":", color=color)
         print(f"{label:30s} deepest tip {max(d for d, _, _ in f) * 1e3:.0f} mm, force there {f[-1][2] / 1e3:.1f} kN, "
-              f"estimate {forrestal_force(f[-1][0], f[-1][1], von_mises=von_mises) / 1e3:.1f} kN")
-        if mean:
-            model, est = mean
-            result[label] = {"tunnel_force": model, "estimate": est, "ratio": model / est}
-            print(f"{label:30s} mean force 25-100 mm deep {model / 1e3:7.1f} kN, estimate {est / 1e3:7.1f} kN, "
-                  f"ratio {model / est:.2f}")
+              f"estimate {forrestal_force(f[-1][0], f[-1][1], **est) / 1e3:.1f} kN")
+        # The mean over the tunnel region (2 a to 100 mm deep) against the estimate there.
+        tun = tunnel_force(out_dir, f, von_mises)
+        if tun["tunnel_force"] is not None:
+            result[label] = tun
+            print(f"{label:30s} mean force 25-100 mm deep {tun['tunnel_force'] / 1e3:7.1f} kN, estimate "
+                  f"{tun['tunnel_force_estimate'] / 1e3:7.1f} kN, ratio {tun['tunnel_force_ratio']:.2f}")
         else:
             print(f"{label:30s} tip not yet {2 * RADIUS * 1e3:.0f} mm deep")
     ax.axvline(REAR * -1e3, color="grey", lw=0.8)

@@ -162,64 +162,65 @@ def check_case(args, outdir, failures):
                 a, r = tol[name]
                 value = interpolate(ts, column(header, data, name), t)
                 check_value(failures, case, f"{name} at t={t:g}", value, expected, a, r, k + 1)
+    # The case's own checks, then those of --checks.
+    paths = ([base + ".checks"] if os.path.exists(base + ".checks") else []) + (args.checks or [])
     checks = []
-    for path in [base + ".checks"] * os.path.exists(base + ".checks") + (args.checks or []):
+    for path in paths:
         with open(path) as f:
             checks += json.load(f)
-    if checks:
-        for c in checks:
-            ys = [y * c.get("scale", 1.0) for y in column(header, data, c["column"])]
-            kind = c["type"]
-            if kind == "mean":
-                sel = [y for t, y in zip(ts, ys) if c["from"] <= t <= c["to"]]
-                value = sum(sel) / len(sel)
-            elif kind in ("first_crossing", "last_crossing"):
-                value = crossing(ts, ys, c["level"], kind == "first_crossing")
-                value = float("nan") if value is None else value
-            elif kind == "max_abs":
-                value = max(abs(y) for t, y in zip(ts, ys) if t >= c.get("from", ts[0]))
-            elif kind == "max":
-                value = max(ys)
-            elif kind == "min":
-                value = min(ys)
-            elif kind == "final":
-                value = ys[-1]
-            elif kind == "relative_drift":
-                # Largest |y - y(0)| / |y(0)| over the run (conserved quantities).
-                value = max(abs(y - ys[0]) for y in ys) / abs(ys[0])
-            elif kind == "max_filtered":
-                # Largest moving average over a centred time window (e.g. a contact force without
-                # the ringing of the discrete wave front); "window" in s.
-                w = 0.5 * c["window"]
-                value = max(sum(yy for tt, yy in zip(ts, ys) if t - w <= tt <= t + w) /
-                            max(1, sum(1 for tt in ts if t - w <= tt <= t + w))
-                            for t in ts if ts[0] + w <= t <= ts[-1] - w)
-            elif kind == "duration":
-                # Time from the first to the last row where the column exceeds "level".
-                on = [t for t, y in zip(ts, ys) if y > c["level"]]
-                value = on[-1] - on[0] if on else 0.0
-            elif kind == "change":
-                # y(to) - y(from), both interpolated linearly between the history rows.
-                value = interpolate(ts, ys, c["to"]) - interpolate(ts, ys, c["from"])
-            elif kind == "growth":
-                # Largest |y| after "from" over the largest |y| up to "to" (no growth: <= 1).
-                late = max(abs(y) for t, y in zip(ts, ys) if t >= c["from"])
-                early = max(abs(y) for t, y in zip(ts, ys) if t <= c["to"])
-                value = late / early
-            elif kind == "impulse_balance":
-                # Momentum balance: largest |y(t) - y(0) - integral of the force columns dt| over
-                # the rows (trapezoidal rule on the history rows), e.g. the momentum of a body
-                # against the applied load and the support reactions.
-                fs = [sum(r) for r in zip(*[column(header, data, n) for n in c["forces"]])]
-                impulse, value = 0.0, 0.0
-                for k in range(1, len(ts)):
-                    impulse += 0.5 * (ts[k] - ts[k - 1]) * (fs[k] + fs[k - 1]) * c.get("scale", 1.0)
-                    if ts[k] >= c.get("from", ts[0]):
-                        value = max(value, abs(ys[k] - ys[0] - impulse))
-            else:
-                raise SystemExit(f"unknown check type {kind}")
-            check_value(failures, case, f"{c['name']} ({c.get('source', '')})", value, c["expected"],
-                        c.get("abs", 0.0), c.get("rel", 0.0))
+    for c in checks:
+        ys = [y * c.get("scale", 1.0) for y in column(header, data, c["column"])]
+        kind = c["type"]
+        if kind == "mean":
+            sel = [y for t, y in zip(ts, ys) if c["from"] <= t <= c["to"]]
+            value = sum(sel) / len(sel)
+        elif kind in ("first_crossing", "last_crossing"):
+            value = crossing(ts, ys, c["level"], kind == "first_crossing")
+            value = float("nan") if value is None else value
+        elif kind == "max_abs":
+            value = max(abs(y) for t, y in zip(ts, ys) if t >= c.get("from", ts[0]))
+        elif kind == "max":
+            value = max(ys)
+        elif kind == "min":
+            value = min(ys)
+        elif kind == "final":
+            value = ys[-1]
+        elif kind == "relative_drift":
+            # Largest |y - y(0)| / |y(0)| over the run (conserved quantities).
+            value = max(abs(y - ys[0]) for y in ys) / abs(ys[0])
+        elif kind == "max_filtered":
+            # Largest moving average over a centred time window (e.g. a contact force without
+            # the ringing of the discrete wave front); "window" in s.
+            w = 0.5 * c["window"]
+            value = max(sum(yy for tt, yy in zip(ts, ys) if t - w <= tt <= t + w) /
+                        max(1, sum(1 for tt in ts if t - w <= tt <= t + w))
+                        for t in ts if ts[0] + w <= t <= ts[-1] - w)
+        elif kind == "duration":
+            # Time from the first to the last row where the column exceeds "level".
+            on = [t for t, y in zip(ts, ys) if y > c["level"]]
+            value = on[-1] - on[0] if on else 0.0
+        elif kind == "change":
+            # y(to) - y(from), both interpolated linearly between the history rows.
+            value = interpolate(ts, ys, c["to"]) - interpolate(ts, ys, c["from"])
+        elif kind == "growth":
+            # Largest |y| after "from" over the largest |y| up to "to" (no growth: <= 1).
+            late = max(abs(y) for t, y in zip(ts, ys) if t >= c["from"])
+            early = max(abs(y) for t, y in zip(ts, ys) if t <= c["to"])
+            value = late / early
+        elif kind == "impulse_balance":
+            # Momentum balance: largest |y(t) - y(0) - integral of the force columns dt| over
+            # the rows (trapezoidal rule on the history rows), e.g. the momentum of a body
+            # against the applied load and the support reactions.
+            fs = [sum(r) for r in zip(*[column(header, data, n) for n in c["forces"]])]
+            impulse, value = 0.0, 0.0
+            for k in range(1, len(ts)):
+                impulse += 0.5 * (ts[k] - ts[k - 1]) * (fs[k] + fs[k - 1]) * c.get("scale", 1.0)
+                if ts[k] >= c.get("from", ts[0]):
+                    value = max(value, abs(ys[k] - ys[0] - impulse))
+        else:
+            raise SystemExit(f"unknown check type {kind}")
+        check_value(failures, case, f"{c['name']} ({c.get('source', '')})", value, c["expected"],
+                    c.get("abs", 0.0), c.get("rel", 0.0))
     if os.path.exists(base + ".summary"):
         with open(os.path.join(outdir, "summary.json")) as f:
             summary = json.load(f)
