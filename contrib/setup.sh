@@ -8,7 +8,8 @@ set -euo pipefail
 SHARD_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 SHARD_BUILD="${SHARD_BUILD:-$SHARD_ROOT/build}"
 SHARD_PACKAGES=(cmake make g++ git ccache python3 python3-matplotlib python3-numpy
-                openmpi-bin libdeal.ii-dev libeigen3-dev libhdf5-mpi-dev libgtest-dev)
+                openmpi-bin libdeal.ii-dev libeigen3-dev libhdf5-mpi-dev libgtest-dev libsuitesparse-dev
+                libopenblas0-serial)
 
 shard_install_packages() {
   local missing=()

@@ -126,6 +126,10 @@ namespace shard::coupling
                           "Bodies (names from 'B - Mesh/body names', comma separated) whose elements are converted "
                           "during the run when they meet one of the criteria below. Empty: no conversion during "
                           "the run.");
+        prm.add_parameter("adaptive regions", adaptive_region_names_text_,
+                          "Regions (comma-separated names, each with a subsection of its own, like 'regions') "
+                          "that bound the conversion during the run: an element of an adaptive body converts only "
+                          "when its reference centre lies in one of them. Empty: anywhere in the adaptive bodies.");
         prm.add_parameter("plastic strain", plastic_strain_,
                           "Criterion: effective plastic strain at or above this value. Unit: 1. Range: >= 0; 0 "
                           "switches the criterion off. Choose it below the failure strain of the material.",
@@ -147,8 +151,11 @@ namespace shard::coupling
                           "Steps between two checks of the criteria. Unit: steps. Range: >= 1.",
                           Patterns::Integer(1));
       }
-    region_names_ = base::split(region_names_text_, ',');
-    for (const auto &name : region_names_)
+    region_names_          = base::split(region_names_text_, ',');
+    adaptive_region_names_ = base::split(adaptive_region_names_text_, ',');
+    std::vector<std::string> all_names(region_names_);
+    all_names.insert(all_names.end(), adaptive_region_names_.begin(), adaptive_region_names_.end());
+    for (const auto &name : all_names)
       {
         if (declared_.count(name))
           continue;
@@ -185,7 +192,11 @@ namespace shard::coupling
   Conversion::check_parameters(const base::PrmSource &source) const
   {
     base::check_names(source, "G - Conversion/regions", region_names_text_, region_names_, true);
-    for (const auto &name : region_names_)
+    base::check_names(source, "G - Conversion/adaptive regions", adaptive_region_names_text_, adaptive_region_names_,
+                      true);
+    std::vector<std::string> all_names(region_names_);
+    all_names.insert(all_names.end(), adaptive_region_names_.begin(), adaptive_region_names_.end());
+    for (const auto &name : all_names)
       {
         const auto &r = *declared_.at(name);
         try
@@ -235,6 +246,15 @@ namespace shard::coupling
           source.fail("G - Conversion/" + name + "/body", r.body, "no body named '" + r.body + "' in 'B - Mesh/body names'.");
         regions.emplace_back(r, b);
       }
+    adaptive_regions_.clear();
+    for (const auto &name : adaptive_region_names_)
+      {
+        const auto &r = *declared_.at(name);
+        const int   b = discretization.body_index(r.body);
+        if (b < 0)
+          source.fail("G - Conversion/" + name + "/body", r.body, "no body named '" + r.body + "' in 'B - Mesh/body names'.");
+        adaptive_regions_.emplace_back(r, b);
+      }
     adaptive_body_.assign(discretization.bodies().size(), false);
     adaptive_bodies_.clear();
     for (const auto &name : base::split(adaptive_bodies_text_, ','))
@@ -278,6 +298,18 @@ namespace shard::coupling
       {
         if (!adaptive_body_[hex.body(e)])
           continue;
+        if (!adaptive_regions_.empty())
+          {
+            std::array<double, 3> centre{{0., 0., 0.}};
+            for (unsigned int a = 0; a < 8; ++a)
+              for (unsigned int c = 0; c < 3; ++c)
+                centre[c] += 0.125 * X.local_element(hex.node(e, a) + c);
+            bool in = false;
+            for (const auto &r : adaptive_regions_)
+              in |= r.body() == static_cast<int>(hex.body(e)) && r.contains(centre);
+            if (!in)
+              continue;
+          }
         bool convert = false;
         if (plastic_strain_ > 0)
           convert |= hex.state_value(e, materials::slot::plastic_strain) >= plastic_strain_;

@@ -45,7 +45,11 @@ namespace shard::particles
         return result;
       }
 
-    // ---- bin geometry: edge b > largest radius, at most about 2 N bins
+    // ---- bin geometry. Every particle is listed in each bin its support box overlaps, so a
+    // query reads the one bin of its point. The edge b is the median support radius (no less
+    // than an eighth of the largest, which bounds the bins per particle to 17^3): a graded cloud
+    // (large far-field particles beside small ones) then still reads few candidates per point.
+    // At most about 2 N bins: b grows for sparse clouds.
     double a_max = 0.0;
     Point3 lo    = particle_positions[0];
     Point3 hi    = particle_positions[0];
@@ -61,9 +65,16 @@ namespace shard::particles
           lo[k] = std::min(lo[k], particle_positions[i][k]);
           hi[k] = std::max(hi[k], particle_positions[i][k]);
         }
-    // The relative margin keeps "|X_k - X_kI| < a  =>  bin indices differ by at most 1" true under
-    // the rounding of (x - lo) / b.
-    double       b        = a_max * (1.0 + 1e-6);
+    std::vector<double> largest(n);
+    for (std::size_t i = 0; i < n; ++i)
+      largest[i] = std::max({support_radii[i][0], support_radii[i][1], support_radii[i][2]});
+    std::nth_element(largest.begin(), largest.begin() + static_cast<std::ptrdiff_t>(n / 2), largest.end());
+    double b = std::max(largest[n / 2], a_max / 8.0);
+    for (unsigned int k = 0; k < 3; ++k)
+      {
+        lo[k] -= a_max;
+        hi[k] += a_max;
+      }
     const double max_bins = std::max(64.0, 2.0 * static_cast<double>(n));
     std::int64_t nb[3];
     for (;;)
@@ -82,63 +93,76 @@ namespace shard::particles
     const auto bin_coordinate = [&](const double x, const unsigned int k) {
       return std::floor((x - lo[k]) / b);
     };
+    // The bins a support box overlaps, widened by a relative 1e-9 so that rounding of
+    // (x - lo) / b never drops a point inside the support.
+    const auto bin_range = [&](const std::size_t i, std::int64_t *from, std::int64_t *to) {
+      for (unsigned int k = 0; k < 3; ++k)
+        {
+          const double c_lo = (particle_positions[i][k] - support_radii[i][k] - lo[k]) / b;
+          const double c_hi = (particle_positions[i][k] + support_radii[i][k] - lo[k]) / b;
+          from[k] = std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor(c_lo - 1e-9 * (1 + std::abs(c_lo)))), 0,
+                                             nb[k] - 1);
+          to[k]   = std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor(c_hi + 1e-9 * (1 + std::abs(c_hi)))), 0,
+                                           nb[k] - 1);
+        }
+    };
 
-    // ---- counting sort of the particles by bin (ascending particle index within a bin)
-    std::vector<std::size_t>  bin_of(n);
-    std::vector<unsigned int> bin_offsets(n_bins + 1, 0u);
+    // ---- counting sort of the (bin, particle) pairs by bin (ascending particle index within a bin)
+    std::vector<std::size_t> bin_offsets(n_bins + 1, 0u);
     for (std::size_t i = 0; i < n; ++i)
       {
-        std::int64_t c[3];
-        for (unsigned int k = 0; k < 3; ++k)
-          c[k] = std::clamp<std::int64_t>(static_cast<std::int64_t>(bin_coordinate(particle_positions[i][k], k)),
-                                          0,
-                                          nb[k] - 1);
-        bin_of[i] = static_cast<std::size_t>((c[2] * nb[1] + c[1]) * nb[0] + c[0]);
-        ++bin_offsets[bin_of[i] + 1];
+        std::int64_t from[3], to[3];
+        bin_range(i, from, to);
+        for (std::int64_t z = from[2]; z <= to[2]; ++z)
+          for (std::int64_t y = from[1]; y <= to[1]; ++y)
+            for (std::int64_t x = from[0]; x <= to[0]; ++x)
+              ++bin_offsets[static_cast<std::size_t>((z * nb[1] + y) * nb[0] + x) + 1];
       }
     for (std::size_t c = 0; c < n_bins; ++c)
       bin_offsets[c + 1] += bin_offsets[c];
-    std::vector<unsigned int> bin_particles(n);
+    std::vector<unsigned int> bin_particles(bin_offsets[n_bins]);
     {
-      std::vector<unsigned int> next(bin_offsets.begin(), bin_offsets.end() - 1);
+      std::vector<std::size_t> next(bin_offsets.begin(), bin_offsets.end() - 1);
       for (std::size_t i = 0; i < n; ++i)
-        bin_particles[next[bin_of[i]]++] = static_cast<unsigned int>(i);
-    }
-
-    // ---- candidates of every evaluation point from the 27 surrounding bins
-    result.columns.reserve(eval_points.size() * 27);
-    for (const Point3 &X : eval_points)
-      {
-        const std::size_t row_begin = result.columns.size();
-        std::int64_t      from[3], to[3];
-        bool              empty = false;
-        for (unsigned int k = 0; k < 3; ++k)
-          {
-            const double c = bin_coordinate(X[k], k);
-            if (!(c >= -1.0 && c <= static_cast<double>(nb[k])))
-              {
-                empty = true; // farther than one bin from every particle (or not finite)
-                break;
-              }
-            from[k] = std::max<std::int64_t>(static_cast<std::int64_t>(c) - 1, 0);
-            to[k]   = std::min<std::int64_t>(static_cast<std::int64_t>(c) + 1, nb[k] - 1);
-          }
-        if (!empty)
+        {
+          std::int64_t from[3], to[3];
+          bin_range(i, from, to);
           for (std::int64_t z = from[2]; z <= to[2]; ++z)
             for (std::int64_t y = from[1]; y <= to[1]; ++y)
               for (std::int64_t x = from[0]; x <= to[0]; ++x)
-                {
-                  const std::size_t bin = static_cast<std::size_t>((z * nb[1] + y) * nb[0] + x);
-                  for (unsigned int t = bin_offsets[bin]; t < bin_offsets[bin + 1]; ++t)
-                    {
-                      const unsigned int I  = bin_particles[t];
-                      const Point3      &XI = particle_positions[I];
-                      const Point3       r  = {{X[0] - XI[0], X[1] - XI[1], X[2] - XI[2]}};
-                      if (inside_support(r, support_radii[I], support))
-                        result.columns.push_back(I);
-                    }
-                }
-        std::sort(result.columns.begin() + static_cast<std::ptrdiff_t>(row_begin), result.columns.end());
+                bin_particles[next[static_cast<std::size_t>((z * nb[1] + y) * nb[0] + x)]++] =
+                  static_cast<unsigned int>(i);
+        }
+    }
+
+    // ---- candidates of every evaluation point: the particles listed in its bin
+    result.columns.reserve(eval_points.size() * 27);
+    for (const Point3 &X : eval_points)
+      {
+        std::int64_t c[3];
+        bool         inside = true;
+        for (unsigned int k = 0; k < 3; ++k)
+          {
+            const double v = bin_coordinate(X[k], k);
+            if (!(v >= 0.0 && v < static_cast<double>(nb[k])))
+              {
+                inside = false; // outside every support (or not finite)
+                break;
+              }
+            c[k] = static_cast<std::int64_t>(v);
+          }
+        if (inside)
+          {
+            const std::size_t bin = static_cast<std::size_t>((c[2] * nb[1] + c[1]) * nb[0] + c[0]);
+            for (std::size_t t = bin_offsets[bin]; t < bin_offsets[bin + 1]; ++t)
+              {
+                const unsigned int I  = bin_particles[t];
+                const Point3      &XI = particle_positions[I];
+                const Point3       r  = {{X[0] - XI[0], X[1] - XI[1], X[2] - XI[2]}};
+                if (inside_support(r, support_radii[I], support))
+                  result.columns.push_back(I);
+              }
+          }
         if (result.columns.size() > std::numeric_limits<unsigned int>::max())
           throw std::length_error("find_support_neighbors: more entries than unsigned int can index");
         result.row_offsets.push_back(static_cast<unsigned int>(result.columns.size()));

@@ -95,10 +95,16 @@ namespace shard::particles
                       "Correction of the nodal gradients so that nodal integration meets the integration "
                       "constraint and passes the Galerkin patch test (doc/theory/spg_stabilization.md). consistent "
                       "(default): the smallest symmetric change of the gradients that keeps linear exactness, from "
-                      "one conjugate-gradient solve at set-up. petrov-galerkin: corrected test functions only "
+                      "one conjugate-gradient solve at set-up and after every conversion. petrov-galerkin: corrected test functions only "
                       "(non-symmetric stiffness; on free surfaces the spectrum becomes complex and a free vibration "
                       "grows). none: the seed form, for comparison.",
                       Patterns::Selection("consistent|petrov-galerkin|none"));
+    prm.add_parameter("correction coarse size", correction_coarse_size_,
+                      "Edge of the aggregates of the coarse space that preconditions the consistent-correction "
+                      "solve, in mean particle spacings; 0 solves with the Jacobi preconditioner alone, whose "
+                      "iterations grow with the square of the particle region's size (decision 0009). The "
+                      "result is the same to the solve tolerance. Unit: 1. Range: 0, or 2 to 50.",
+                      Patterns::Double(0, 50));
     prm.leave_subsection();
     return true;
   }
@@ -109,6 +115,9 @@ namespace shard::particles
     if (!(options_.residual_coefficient >= 0 && options_.residual_coefficient <= 10))
       source.fail("F - Particle formulation/residual coefficient", std::to_string(options_.residual_coefficient),
                   "must be in [0, 10]. Unit: 1.");
+    if (correction_coarse_size_ != 0 && !(correction_coarse_size_ >= 2 && correction_coarse_size_ <= 50))
+      source.fail("F - Particle formulation/correction coarse size", std::to_string(correction_coarse_size_),
+                  "must be 0 (no coarse space) or in [2, 50]. Unit: mean particle spacings.");
   }
 
   void
@@ -271,14 +280,28 @@ namespace shard::particles
       const std::vector<double> local(a);
       Utilities::MPI::sum(local, comm, a);
     };
+    exchange.rank   = Utilities::MPI::this_mpi_process(comm);
+    exchange.gather = [comm](const std::vector<double> &a) {
+      const int           n_ranks = Utilities::MPI::n_mpi_processes(comm);
+      int                 n       = static_cast<int>(a.size());
+      std::vector<int>    counts(n_ranks), offsets(n_ranks + 1, 0);
+      MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, comm);
+      for (int r = 0; r < n_ranks; ++r)
+        offsets[r + 1] = offsets[r] + counts[r];
+      std::vector<double> all(offsets[n_ranks]);
+      MPI_Allgatherv(a.data(), n, MPI_DOUBLE, all.data(), counts.data(), offsets.data(), MPI_DOUBLE, comm);
+      return all;
+    };
     std::vector<double> lambda;
-    const auto          solve = solve_consistent_correction(correction, particles_->area_vectors().data(), position,
-                                                   component, n_components, exchange, lambda, 1e-10);
+    const auto          solve =
+      solve_consistent_correction(correction, particles_->area_vectors().data(), position, component, n_components,
+                                  exchange, lambda, 1e-10, 50000, correction_coarse_size_);
     correction_solve_ = solve;
     if (solve.converged && Utilities::MPI::this_mpi_process(comm) == 0)
       std::cerr << "shard: particles: consistent gradient correction: " << solve.iterations
                 << " conjugate-gradient iterations, defect " << solve.initial_defect << " -> " << solve.final_defect
-                << " m^2\n";
+                << " m^2, coarse space " << solve.coarse_functions << " functions on " << solve.aggregates
+                << " aggregates\n";
     if (!solve.converged && Utilities::MPI::this_mpi_process(comm) == 0)
       std::cerr << "shard: warning: the consistent gradient correction did not converge (" << solve.iterations
                 << " iterations, defect " << solve.initial_defect << " -> " << solve.final_defect

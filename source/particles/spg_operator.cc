@@ -3,8 +3,16 @@
 #include <shard/particles/neighbor_build.h>
 #include <shard/particles/spg_operator.h>
 
+#include <Eigen/Dense>
+#include <Eigen/CholmodSupport>
+
 #include <algorithm>
+#include <array>
+#include <cstdint>
 #include <iterator>
+#include <map>
+#include <memory>
+#include <unordered_map>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -562,11 +570,315 @@ namespace shard::particles
     return out;
   }
 
+  std::vector<CoarseEntry>
+  ConsistentCorrection::coarse_operator(const CoarseFunctions &functions) const
+  {
+    const Stencil &g = st_.g;
+    struct Block
+    {
+      std::array<double, 16> v{};
+      unsigned char          rows = 0, columns = 0;
+    };
+    std::unordered_map<std::uint64_t, Block> blocks;
+    // Per row: the aggregates of its stencil (first function, count, first column in T).
+    std::vector<unsigned int> agg_first, agg_column;
+    std::vector<unsigned char> agg_count;
+    std::vector<double>       t, u, d; // T (4 x n_col), M^-1 T, diagonal blocks (16 per aggregate)
+    std::vector<unsigned int> entry_agg;
+    for (unsigned int i = 0; i < n_i_; ++i)
+      {
+        if (std::isnan(inverse_moment_[16 * i]))
+          continue;
+        agg_first.clear();
+        agg_count.clear();
+        agg_column.clear();
+        entry_agg.clear();
+        unsigned int n_col = 0;
+        for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+          {
+            const unsigned int f = functions.first[g.columns[e]];
+            unsigned int       a = 0;
+            while (a < agg_first.size() && agg_first[a] != f)
+              ++a;
+            if (a == agg_first.size())
+              {
+                agg_first.push_back(f);
+                agg_count.push_back(functions.count[g.columns[e]]);
+                agg_column.push_back(n_col);
+                n_col += agg_count.back();
+              }
+            entry_agg.push_back(a);
+          }
+        if (agg_first.size() < 2)
+          continue;
+        t.assign(4 * n_col, 0.);
+        d.assign(16 * agg_first.size(), 0.);
+        for (unsigned int e = g.row_offsets[i], k = 0; e < g.row_offsets[i + 1]; ++e, ++k)
+          {
+            const unsigned int a   = entry_agg[k];
+            const unsigned int j   = g.columns[e];
+            const double       z[4] = {1., functions.phi[3 * j], functions.phi[3 * j + 1], functions.phi[3 * j + 2]};
+            const double      *p   = &basis_[4 * e];
+            const unsigned int n   = agg_count[a];
+            for (unsigned int r = 0; r < n; ++r)
+              {
+                for (unsigned int c = 0; c < n; ++c)
+                  d[16 * a + 4 * r + c] += z[r] * z[c];
+                for (unsigned int q = 0; q < 4; ++q)
+                  t[n_col * q + agg_column[a] + r] += p[q] * z[r];
+              }
+          }
+        const double *inv = &inverse_moment_[16 * i];
+        u.assign(4 * n_col, 0.);
+        for (unsigned int q = 0; q < 4; ++q)
+          for (unsigned int s = 0; s < 4; ++s)
+            for (unsigned int c = 0; c < n_col; ++c)
+              u[n_col * q + c] += inv[4 * q + s] * t[n_col * s + c];
+        const double w = volume_[i] * volume_[i];
+        for (unsigned int a = 0; a < agg_first.size(); ++a)
+          for (unsigned int b = 0; b < agg_first.size(); ++b)
+            {
+              Block &blk  = blocks[(std::uint64_t(agg_first[a]) << 32) | agg_first[b]];
+              blk.rows    = agg_count[a];
+              blk.columns = agg_count[b];
+              for (unsigned int r = 0; r < agg_count[a]; ++r)
+                for (unsigned int c = 0; c < agg_count[b]; ++c)
+                  {
+                    double v = a == b ? d[16 * a + 4 * r + c] : 0.;
+                    for (unsigned int q = 0; q < 4; ++q)
+                      v -= t[n_col * q + agg_column[a] + r] * u[n_col * q + agg_column[b] + c];
+                    blk.v[4 * r + c] += w * v;
+                  }
+            }
+      }
+    std::vector<CoarseEntry> out;
+    out.reserve(16 * blocks.size());
+    for (const auto &[key, blk] : blocks)
+      for (unsigned int r = 0; r < blk.rows; ++r)
+        for (unsigned int c = 0; c < blk.columns; ++c)
+          out.push_back({static_cast<unsigned int>(key >> 32) + r, static_cast<unsigned int>(key & 0xffffffffu) + c,
+                         blk.v[4 * r + c]});
+    std::sort(out.begin(), out.end(), [](const CoarseEntry &x, const CoarseEntry &y) {
+      return x.row != y.row ? x.row < y.row : x.column < y.column;
+    });
+    return out;
+  }
+
+  namespace
+  {
+    /**
+     * The additive coarse correction of the correction solve: aggregates of owned particles
+     * (cubes of edge H per component), their constant and linear functions, E = Z^T S Z assembled
+     * over all ranks and factorized (CHOLMOD, supernodal Cholesky) on every rank.
+     */
+    class CoarseCorrection
+    {
+    public:
+      CoarseCorrection(const ConsistentCorrection &correction, const std::vector<Point3> &position_j,
+                       const std::vector<unsigned int> &component, const double size, const CorrectionExchange &exchange)
+        : exchange_(exchange)
+        , n_owned_(component.size())
+      {
+        const unsigned int n_j = correction.n_j();
+        // The edge H: size times the mean spacing (cube root of the mean volume), over all ranks.
+        std::vector<double> totals{0., double(n_owned_)};
+        for (unsigned int i = 0; i < correction.n_i(); ++i)
+          totals[0] += correction.volume(i);
+        exchange.sum(totals);
+        const double h = totals[1] > 0 ? std::cbrt(totals[0] / totals[1]) : 1.;
+        const double H = size * h;
+
+        // Aggregates of the owned particles, numbered in the order of their cube (deterministic).
+        std::map<std::array<long long, 4>, unsigned int> index;
+        std::vector<unsigned int>                         aggregate(n_owned_);
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          {
+            std::array<long long, 4> key{{static_cast<long long>(component[i]), 0, 0, 0}};
+            for (unsigned int c = 0; c < 3; ++c)
+              key[c + 1] = static_cast<long long>(std::floor(position_j[i][c] / H));
+            index.emplace(key, 0u);
+          }
+        {
+          unsigned int n = 0;
+          for (auto &entry : index)
+            entry.second = n++;
+          n_aggregates_ = n;
+        }
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          {
+            std::array<long long, 4> key{{static_cast<long long>(component[i]), 0, 0, 0}};
+            for (unsigned int c = 0; c < 3; ++c)
+              key[c + 1] = static_cast<long long>(std::floor(position_j[i][c] / H));
+            aggregate[i] = index.at(key);
+          }
+        // Per aggregate: centroid and principal directions; a direction is kept when its
+        // variance is at least 1 % of the largest one and the aggregate has 4 particles or more.
+        std::vector<Eigen::Vector3d> centroid(n_aggregates_, Eigen::Vector3d::Zero());
+        std::vector<Eigen::Matrix3d> moment(n_aggregates_, Eigen::Matrix3d::Zero());
+        std::vector<unsigned int>    members(n_aggregates_, 0);
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          {
+            centroid[aggregate[i]] += Eigen::Vector3d(position_j[i][0], position_j[i][1], position_j[i][2]);
+            ++members[aggregate[i]];
+          }
+        for (unsigned int a = 0; a < n_aggregates_; ++a)
+          centroid[a] /= members[a];
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          {
+            const Eigen::Vector3d x =
+              Eigen::Vector3d(position_j[i][0], position_j[i][1], position_j[i][2]) - centroid[aggregate[i]];
+            moment[aggregate[i]] += x * x.transpose();
+          }
+        std::vector<Eigen::Matrix3d> scaled(n_aggregates_, Eigen::Matrix3d::Zero()); // rows: v_k / sigma_k
+        std::vector<unsigned int>    count(n_aggregates_, 1), local_first(n_aggregates_, 0);
+        unsigned int                 n_local = 0;
+        for (unsigned int a = 0; a < n_aggregates_; ++a)
+          {
+            local_first[a] = n_local;
+            if (members[a] >= 4)
+              {
+                const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(moment[a] / members[a]);
+                const double largest = eig.eigenvalues()(2);
+                for (int k = 2; k >= 0; --k)
+                  if (largest > 0 && eig.eigenvalues()(k) >= 1e-2 * largest)
+                    scaled[a].row(count[a]++ - 1) = eig.eigenvectors().col(k).transpose() / std::sqrt(eig.eigenvalues()(k));
+              }
+            n_local += count[a];
+          }
+        // Global numbering: the functions of the ranks before this one come first.
+        unsigned int offset = 0;
+        n_functions_        = n_local;
+        if (exchange.gather)
+          {
+            const auto counts = exchange.gather(std::vector<double>{double(n_local)});
+            n_functions_      = 0;
+            for (unsigned int r = 0; r < counts.size(); ++r)
+              {
+                if (r < exchange.rank)
+                  offset += static_cast<unsigned int>(counts[r]);
+                n_functions_ += static_cast<unsigned int>(counts[r]);
+              }
+          }
+        // The functions at every J: owned computed here, the others from their owners.
+        std::vector<double> head(3 * n_j, 0.), tail(3 * n_j, 0.);
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          {
+            const unsigned int    a = aggregate[i];
+            const Eigen::Vector3d x =
+              Eigen::Vector3d(position_j[i][0], position_j[i][1], position_j[i][2]) - centroid[a];
+            const Eigen::Vector3d phi = scaled[a] * x;
+            head[3 * i]               = offset + local_first[a];
+            head[3 * i + 1]           = count[a];
+            head[3 * i + 2]           = count[a] > 1 ? phi(0) : 0.;
+            tail[3 * i]               = count[a] > 2 ? phi(1) : 0.;
+            tail[3 * i + 1]           = count[a] > 3 ? phi(2) : 0.;
+          }
+        exchange.distribute(head);
+        exchange.distribute(tail);
+        functions_.first.resize(n_j);
+        functions_.count.resize(n_j);
+        functions_.phi.resize(3 * n_j);
+        for (unsigned int j = 0; j < n_j; ++j)
+          {
+            functions_.first[j]       = static_cast<unsigned int>(head[3 * j]);
+            functions_.count[j]       = static_cast<unsigned char>(head[3 * j + 1]);
+            functions_.phi[3 * j]     = head[3 * j + 2];
+            functions_.phi[3 * j + 1] = tail[3 * j];
+            functions_.phi[3 * j + 2] = tail[3 * j + 1];
+          }
+
+        // E over all ranks, factorized on every rank.
+        const auto          local = correction.coarse_operator(functions_);
+        std::vector<double> flat(3 * local.size());
+        for (std::size_t k = 0; k < local.size(); ++k)
+          {
+            flat[3 * k]     = local[k].row;
+            flat[3 * k + 1] = local[k].column;
+            flat[3 * k + 2] = local[k].value;
+          }
+        if (exchange.gather)
+          flat = exchange.gather(flat);
+        std::vector<Eigen::Triplet<double>> triplets;
+        triplets.reserve(flat.size() / 3 + n_functions_);
+        std::vector<double> diagonal(n_functions_, 0.);
+        for (std::size_t k = 0; k < flat.size(); k += 3)
+          {
+            const auto r = static_cast<int>(flat[k]), c = static_cast<int>(flat[k + 1]);
+            triplets.emplace_back(r, c, flat[k + 2]);
+            if (r == c)
+              diagonal[r] += flat[k + 2];
+          }
+        // E is singular along the fields linear over a whole component (and along functions no
+        // row couples): a small shift makes it definite; the right-hand sides Z^T r are
+        // orthogonal to those directions, so the shift changes the correction by round-off only.
+        const double largest = diagonal.empty() ? 0. : *std::max_element(diagonal.begin(), diagonal.end());
+        for (unsigned int k = 0; k < n_functions_; ++k)
+          triplets.emplace_back(k, k, diagonal[k] > 1e-10 * largest ? 1e-8 * largest : std::max(largest, 1.));
+        Eigen::SparseMatrix<double> e(n_functions_, n_functions_);
+        e.setFromTriplets(triplets.begin(), triplets.end());
+        factor_.compute(e);
+        // Round-off may leave a pivot of a singular direction negative: shift more and retry.
+        for (double extra = 1e-6 * largest; factor_.info() != Eigen::Success && extra <= largest; extra *= 100)
+          {
+            Eigen::SparseMatrix<double> shifted = e;
+            for (unsigned int k = 0; k < n_functions_; ++k)
+              shifted.coeffRef(k, k) += extra;
+            factor_.compute(shifted);
+          }
+        if (factor_.info() != Eigen::Success)
+          throw std::runtime_error("consistent correction: the coarse matrix could not be factorized");
+      }
+
+      /// z += Z E^-1 Z^T r on the owned J (3 per J).
+      void
+      add(const std::vector<double> &r, std::vector<double> &z) const
+      {
+        std::vector<double> b(3 * std::size_t(n_functions_), 0.);
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          for (unsigned int k = 0; k < functions_.count[i]; ++k)
+            {
+              const double phi = k == 0 ? 1. : functions_.phi[3 * i + k - 1];
+              for (unsigned int c = 0; c < 3; ++c)
+                b[3 * (functions_.first[i] + k) + c] += phi * r[3 * i + c];
+            }
+        exchange_.sum(b);
+        Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> rhs(b.data(), n_functions_, 3);
+        const Eigen::Matrix<double, Eigen::Dynamic, 3> y = factor_.solve(Eigen::Matrix<double, Eigen::Dynamic, 3>(rhs));
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          for (unsigned int k = 0; k < functions_.count[i]; ++k)
+            {
+              const double phi = k == 0 ? 1. : functions_.phi[3 * i + k - 1];
+              for (unsigned int c = 0; c < 3; ++c)
+                z[3 * i + c] += phi * y(functions_.first[i] + k, c);
+            }
+      }
+
+      unsigned int
+      n_functions() const
+      {
+        return n_functions_;
+      }
+
+      unsigned int
+      n_aggregates() const
+      {
+        return n_aggregates_;
+      }
+
+    private:
+      const CorrectionExchange                          &exchange_;
+      unsigned int                                       n_owned_, n_functions_ = 0, n_aggregates_ = 0;
+      CoarseFunctions                                    functions_;
+      Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> factor_;
+    };
+  } // namespace
+
   CorrectionSolve
   solve_consistent_correction(const ConsistentCorrection &correction, const double *area,
                               const std::vector<Point3> &position_j, const std::vector<unsigned int> &component,
                               const unsigned int n_components, const CorrectionExchange &exchange,
-                              std::vector<double> &lambda, const double tolerance, const unsigned int max_iterations)
+                              std::vector<double> &lambda, const double tolerance, const unsigned int max_iterations,
+                              const double coarse_size)
   {
     const unsigned int n_j = correction.n_j(), n_owned = component.size();
     std::vector<double> r(3 * n_j), z(3 * n_j), p(3 * n_j), q(3 * n_j), diag(3 * n_j);
@@ -654,9 +966,20 @@ namespace shard::particles
     out.initial_defect = r_norm;
     out.inconsistency  = r_norm > 0 ? std::sqrt(removed) / r_norm : 0.;
 
+    std::unique_ptr<CoarseCorrection> coarse;
+    if (coarse_size > 0)
+      {
+        coarse                = std::make_unique<CoarseCorrection>(correction, position_j, component, coarse_size, exchange);
+        out.coarse_functions = coarse->n_functions();
+        std::vector<double> n(1, coarse->n_aggregates());
+        exchange.sum(n);
+        out.aggregates = static_cast<unsigned int>(n[0]);
+      }
     const auto precondition = [&]() {
       for (unsigned int k = 0; k < 3 * n_owned; ++k)
         z[k] = diag[k] > 0 ? r[k] / diag[k] : 0.;
+      if (coarse)
+        coarse->add(r, z);
     };
     precondition();
     p = z;

@@ -157,7 +157,8 @@ namespace shard::coupling
     /**
      * @brief Local elements of @p hex (owned, unconverted) that meet a criterion: effective
      * plastic strain, K&C scaled damage, smallest corner Jacobian ratio (current over
-     * reference) or element time step below the floor. Only elements of adaptive bodies count.
+     * reference) or element time step below the floor. Only elements of adaptive bodies count,
+     * and, when 'adaptive regions' are named, only those whose reference centre lies in one.
      * @param d displacement with ghost values (for the corner Jacobians)
      */
     std::vector<unsigned int>
@@ -204,6 +205,10 @@ namespace shard::coupling
     bool                                                      declared_main_ = false;
     std::string                                               adaptive_bodies_text_;
     std::vector<unsigned int>                                 adaptive_bodies_;
+    /// 'adaptive regions': the names and their resolved shapes (empty: the whole bodies).
+    std::string                                               adaptive_region_names_text_;
+    std::vector<std::string>                                  adaptive_region_names_;
+    std::vector<Region>                                       adaptive_regions_;
     double                                                    plastic_strain_ = 0., scaled_damage_ = 0.;
     double                                                    min_jacobian_ = 0., dt_floor_ = 0.;
     unsigned int                                              check_interval_ = 1;

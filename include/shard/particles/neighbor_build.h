@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 /**
  * @file neighbor_build.h
- * @brief Candidate search for RK stencils by uniform binning (no deal.II headers).
+ * @brief Candidate search for RK stencils by uniform binning of the supports (no deal.II headers).
  * @ingroup particles
  */
 #pragma once
@@ -18,9 +18,11 @@ namespace shard::particles
    * (|X - X_I| < a_I for equal radii). These are exactly the particles with @f$ \Phi_I(X) > 0 @f$
    * up to rounding at the support boundary, where the weight vanishes anyway.
    *
-   * Particles are sorted into cubic bins of edge slightly above the largest support radius (enlarged
-   * when needed so that there are at most about 2 N bins), so only the 27 bins around X are visited:
-   * O(N + n_eval) expected work for bounded density. Evaluation points may lie outside the
+   * Each particle is listed in every cubic bin its support box overlaps; the bin edge is the
+   * median support radius, no less than an eighth of the largest (enlarged when needed so that
+   * there are at most about 2 N bins), and a point reads only its own bin: O(N + n_eval) expected
+   * work for bounded density, also when a few particles have much larger supports than the
+   * rest (a graded far field). Evaluation points may lie outside the
    * particles' bounding box. Columns within a row are ascending; a particle position used as
    * evaluation point finds the particle itself.
    *

@@ -275,6 +275,8 @@ namespace shard::particles
     std::string        smoothing_text_     = "two-level";
     std::string        stabilization_text_ = "residual";
     std::string        correction_text_    = "consistent";
+    /// Aggregate edge of the correction solve's coarse space, in mean spacings (0: none).
+    double correction_coarse_size_ = 3;
     FormulationOptions options_;
     bool               declared_ = false, active_ = false;
     /// Whether u, F, VP, the force and the operator's g and residual weights are those of the

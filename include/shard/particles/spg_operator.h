@@ -282,6 +282,27 @@ namespace shard::particles
   };
 
   /**
+   * @brief A coarse space for the consistent-correction solve, given per particle J of the local
+   * stencils (owned first): J belongs to one aggregate, whose coarse functions are numbered
+   * first[J] .. first[J] + count[J] - 1 over all ranks. Function 0 is 1, functions 1..3 are
+   * linear (their values at J in phi); an aggregate too flat or too small for a direction has fewer.
+   */
+  struct CoarseFunctions
+  {
+    std::vector<unsigned int>  first;
+    std::vector<unsigned char> count;
+    /// 3 per J: the linear functions 1..3 of J's aggregate at X_J (0 where count <= k).
+    std::vector<double> phi;
+  };
+
+  /// One entry of a coarse matrix.
+  struct CoarseEntry
+  {
+    unsigned int row, column;
+    double       value;
+  };
+
+  /**
    * @brief The consistent gradient correction: the smallest change C of the nodal gradients
    * (same stencils) such that
    * - every row still differentiates linear fields exactly: sum_J C_IJ = 0 and
@@ -335,6 +356,31 @@ namespace shard::particles
       return n_j_;
     }
 
+    /// Number of owned rows I.
+    unsigned int
+    n_i() const
+    {
+      return n_i_;
+    }
+
+    /// Volume V_I of owned row @p i.
+    double
+    volume(const unsigned int i) const
+    {
+      return volume_[i];
+    }
+
+    /**
+     * @brief Partial Galerkin coarse operator Z^T S Z of the owned rows, for a coarse space Z of
+     * functions given per particle J (CoarseFunctions). With z_J the values of the functions of
+     * J's aggregate at J, a row contributes V_I^2 [sum_J z_J z_J^T (block diagonal per aggregate)
+     * - T^T M_I^-1 T], T = sum_J p_J z_J^T: the same projection as apply(), without forming
+     * (1 - P_I) Z. Rows whose stencil lies in one aggregate add nothing (its functions are linear).
+     * @return the entries (global coarse indices), one per (row, column), sorted
+     */
+    std::vector<CoarseEntry>
+    coarse_operator(const CoarseFunctions &functions) const;
+
   private:
     const LocalStencils &st_;
     unsigned int         n_i_, n_j_;
@@ -358,6 +404,10 @@ namespace shard::particles
     std::function<void(std::vector<double> &)> distribute;
     /// Element-wise sum over ranks.
     std::function<void(std::vector<double> &)> sum;
+    /// The vectors of all ranks, concatenated in rank order (unset: one rank, identity).
+    std::function<std::vector<double>(const std::vector<double> &)> gather;
+    /// This rank's index (0 on one rank).
+    unsigned int rank = 0;
   };
 
   /// Outcome of the correction solve.
@@ -369,18 +419,29 @@ namespace shard::particles
     /// Part of r outside the range of S that was removed, |r_removed| / |r|.
     double inconsistency = 0;
     bool   converged     = false;
+    /// Size of the coarse space of the preconditioner (0: Jacobi alone) and its aggregates.
+    unsigned int coarse_functions = 0, aggregates = 0;
   };
 
   /**
-   * @brief Solves S lambda = r by conjugate gradients with a Jacobi preconditioner, after
-   * removing from r its (round-off or mesh-distortion) component along linear fields, per
-   * @p component (e.g. body) of the owned particles.
+   * @brief Solves S lambda = r by preconditioned conjugate gradients, after removing from r its
+   * (round-off or mesh-distortion) component along linear fields, per @p component (e.g. body)
+   * of the owned particles.
+   *
+   * The preconditioner is Jacobi, plus, for @p coarse_size > 0, an additive coarse correction
+   * Z E^-1 Z^T with E = Z^T S Z: the owned particles are grouped into aggregates (cubes of edge
+   * coarse_size times the mean particle spacing, per component and rank) and Z holds a constant
+   * and up to three linear functions per aggregate. S is a fourth-order operator, so Jacobi
+   * alone needs iterations growing as (L/h)^2 with the size L of the particle set; the coarse
+   * space bounds them by the aggregate size (decision 0009, doc/theory/spg_stabilization.md).
    * @param lambda on return, the solution on every J (3 per J)
    * @param tolerance on |r - S lambda| / |r|
+   * @param coarse_size aggregate edge in mean particle spacings (0: no coarse space)
    */
   CorrectionSolve
   solve_consistent_correction(const ConsistentCorrection &correction, const double *area,
                               const std::vector<Point3> &position_j, const std::vector<unsigned int> &component,
                               unsigned int n_components, const CorrectionExchange &exchange,
-                              std::vector<double> &lambda, double tolerance = 1e-12, unsigned int max_iterations = 50000);
+                              std::vector<double> &lambda, double tolerance = 1e-12, unsigned int max_iterations = 50000,
+                              double coarse_size = 0);
 } // namespace shard::particles

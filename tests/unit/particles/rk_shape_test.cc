@@ -810,3 +810,28 @@ TEST(NeighborBinning, SparseClustersMatchBruteForce)
     pts.push_back(pt(1000.0 * u(rng), u(rng), 1000.0 * u(rng)));
   expect_same_rows(find_support_neighbors(pts, cl.x, cl.a, Support::box), brute_force(pts, cl, Support::box, false));
 }
+
+
+// A graded cloud: 3000 small supports beside 30 ten times larger ones (a far field converted
+// next to a fine core). The bins follow the small radii; the large supports span many bins and
+// must still be found from every point inside them.
+TEST(NeighborBinning, GradedRadiiMatchBruteForce)
+{
+  std::mt19937                           rng(11);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (const Support s : {Support::box, Support::sphere})
+    {
+      SCOPED_TRACE(name(s));
+      Cloud cl;
+      for (unsigned int i = 0; i < 3030; ++i)
+        {
+          cl.x.push_back(pt(u(rng), u(rng), 0.5 * u(rng)));
+          const double a = i % 101 == 0 ? 0.3 + 0.1 * u(rng) : 0.03 + 0.01 * u(rng);
+          cl.a.push_back(pt(a, a, a));
+        }
+      std::vector<Point3> pts = cl.x;
+      for (unsigned int t = 0; t < 500; ++t)
+        pts.push_back(pt(1.4 * u(rng) - 0.2, 1.4 * u(rng) - 0.2, u(rng) - 0.25));
+      expect_same_rows(find_support_neighbors(pts, cl.x, cl.a, s), brute_force(pts, cl, s, true));
+    }
+}
