@@ -99,6 +99,12 @@ namespace shard::particles
                           "A bond breaks when its stretch |x_J - x_I| / |X_J - X_I| exceeds this value or falls "
                           "below its inverse. 0 switches the stretch criterion off. Unit: 1. Range: 0 or > 1.",
                           Patterns::Double(0));
+        prm.add_parameter("minimum volume ratio", st.volume_ratio,
+                          "A particle of this material whose relative volume J = V / V0 falls below this value "
+                          "becomes a free particle (crushed: all its bonds break, mass, momentum and state are "
+                          "kept), like LS-DYNA's erosion of negative-volume elements but without deleting mass. "
+                          "0 switches it off. Unit: 1. Range: 0 to 1.",
+                          Patterns::Double(0, 1));
         prm.leave_subsection();
       }
     prm.leave_subsection();
@@ -117,6 +123,8 @@ namespace shard::particles
                       "> 0 when 'criterion' is '" + st.criterion_text + "'.");
         if (st.stretch != 0 && !(st.stretch > 1))
           source.fail(top + name + "/critical stretch", std::to_string(st.stretch), "0 (off) or > 1.");
+        if (!(st.volume_ratio >= 0 && st.volume_ratio < 1))
+          source.fail(top + name + "/minimum volume ratio", std::to_string(st.volume_ratio), "0 (off) to below 1.");
       }
   }
 
@@ -129,13 +137,14 @@ namespace shard::particles
     criterion_.assign(n, BondCriterion::none);
     threshold_.assign(n, 1.);
     stretch_.assign(n, 0.);
+    volume_ratio_.assign(n, 0.);
     slot_.assign(n, -1);
     value_.assign(n, 0.);
     bool any          = false;
     stretch_possible_ = false;
     for (const auto &[name, st] : settings_)
       {
-        any |= st.criterion_text != "none" || st.stretch > 0;
+        any |= st.criterion_text != "none" || st.stretch > 0 || st.volume_ratio > 0;
         stretch_possible_ |= st.stretch > 0;
       }
     active_ = spg.active() && any;
@@ -155,6 +164,7 @@ namespace shard::particles
         criterion_[i]           = criterion_of(st.criterion_text);
         threshold_[i]           = st.threshold > 0 ? st.threshold : 1.;
         stretch_[i]             = st.stretch;
+        volume_ratio_[i]        = st.volume_ratio;
         const char *slot        = criterion_[i] == BondCriterion::plastic_strain ? materials::slot::plastic_strain :
                                   criterion_[i] == BondCriterion::scaled_damage  ? "scaled damage" :
                                                                                    nullptr;
@@ -260,13 +270,25 @@ namespace shard::particles
               }
           }
 
+    // Crushed particles (J below the material's minimum volume ratio) that still have bonds.
+    std::vector<unsigned long long> crushed;
+    for (unsigned int i = 0; i < n; ++i)
+      if (has_bonds_[i] && volume_ratio_[i] > 0 && spg.jacobian(i) < volume_ratio_[i])
+        crushed.push_back(particles.compact_id(i));
+
     // 3. One list on every rank. 4. Free particles, until none is added.
     unsigned long long n_bonds = 0, n_freed = 0;
-    if (Utilities::MPI::sum(static_cast<unsigned long long>(bonds.size()), comm) > 0)
+    if (Utilities::MPI::sum(static_cast<unsigned long long>(bonds.size() + crushed.size()), comm) > 0)
       {
         const auto all  = gather_sorted(comm, bonds);
         const auto before = particles.broken_bonds().size();
         particles.break_bonds(all);
+        const auto all_crushed = gather_sorted(comm, crushed);
+        if (!all_crushed.empty())
+          {
+            particles.break_bonds({}, all_crushed);
+            n_freed += all_crushed.size();
+          }
         n_bonds = particles.broken_bonds().size() - before;
         while (true)
           {

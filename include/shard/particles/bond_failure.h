@@ -63,8 +63,9 @@ namespace shard::particles
    *    breaking when lambda > s or lambda < 1 / s;
    * 3. the new bonds of all ranks are gathered, so every rank breaks the same list
    *    (ParticleSet::break_bonds rebuilds the rows from the surviving bonds);
-   * 4. owned particles with fewer than `minimum bonds` intact bonds become free: all their
-   *    bonds break; repeated until no particle becomes free.
+   * 4. owned particles whose relative volume J fell below their material's `minimum volume
+   *    ratio` (crushed), and then those with fewer than `minimum bonds` intact bonds, become
+   *    free: all their bonds break; repeated until no particle becomes free.
    * Mass, momentum, stress and history of every particle stay as they are. A free particle
    * has the identity as A row and a zero G row: no internal force, it moves with its
    * velocity until contact stops it.
@@ -155,6 +156,7 @@ namespace shard::particles
       std::string criterion_text = "none";
       double      threshold      = 0;
       double      stretch        = 0;
+      double      volume_ratio   = 0;
     };
     const materials::MaterialLibrary &library_;
     std::map<std::string, Settings>   settings_;
@@ -169,7 +171,7 @@ namespace shard::particles
     unsigned long long                n_broken_ = 0, n_free_ = 0;
     /// Per owned particle: criterion, threshold, critical stretch, history slot (-1: none).
     std::vector<BondCriterion> criterion_;
-    std::vector<double>        threshold_, stretch_, value_;
+    std::vector<double>        threshold_, stretch_, value_, volume_ratio_;
     std::vector<int>           slot_;
     /// Per owned particle: whether it still has an intact bond (its value is exchanged as 0
     /// otherwise, so that free particles do not keep the largest value up).
