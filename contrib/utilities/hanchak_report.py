@@ -12,7 +12,10 @@
 Definitions of one run (slab 178 mm thick between z = -0.178 and 0, shot along -z):
   residual velocity  the projectile's mean velocity -v_z at the end of the run if its tail
              (the largest z of the projectile) has passed the rear face z = -0.178; 0 otherwise
-             (stopped or stuck in the slab); perforated = the tail passed the rear face;
+             (stopped or stuck in the slab); perforated = the tail passed the rear face. A run
+             that did not complete (summary status 'unstable': stopped with a diagnostic) and
+             whose tail has not passed has no residual velocity (empty; the sweep's fit skips
+             it); its status is reported;
   exit time  the first history row at which the tip (the smallest z) passes the rear face;
   front crater / scab  at the last field output, the particles on the front face (z = 0) or the
              rear face (z = -0.178) in the reference configuration that have moved more than
@@ -112,8 +115,10 @@ def run_report(out_dir):
     slab = frags[0]
     projectile = min(frags[:3], key=lambda r: float(r["vz"]))
     debris = [r for r in frags if r is not slab and r is not projectile]
+    status = summary.get("status", "completed")
+    residual = v if perforated else (0.0 if status == "completed" else None)
     return {
-        "residual_velocity": v if perforated else 0.0, "final_velocity": v, "perforated": perforated,
+        "residual_velocity": residual, "status": status, "final_velocity": v, "perforated": perforated,
         "exit_time": exit_time, "end_time": float(last["time"]), "tail_z": tail,
         "front_crater_diameter": crater, "front_crater_radius_max": crater_r,
         "scab_diameter": scab, "scab_radius_max": scab_r,
@@ -174,7 +179,7 @@ def recht_ipson(vs, vr):
 
 def sweep(csv_path, png, tests):
     with open(csv_path) as f:
-        rows = list(csv.DictReader(f))
+        rows = [r for r in csv.DictReader(f) if r["residual_velocity"] not in ("", "None")]
     vs = [float(r["striking_velocity"]) for r in rows]
     vr = [float(r["residual_velocity"]) for r in rows]
     a, p, vbl, rms = recht_ipson(vs, vr)

@@ -1498,6 +1498,11 @@ namespace shard
         initial_energy_ = g.initial_energy, energy_error_ = g.energy_error, max_energy_error_ = g.max_energy_error;
         first_stable_dt_ = g.first_stable_dt, initial_max_speed_ = g.initial_max_speed;
         next_output_ = g.next_output, last_fragments_time_ = g.last_fragments_time;
+        // 'K - Output/interval' may change on restart: a smaller interval than the checkpointed
+        // run's (or one set where that run had 0) takes effect from here. With the same interval
+        // this is a no-op: the checkpointed next output lies within one interval of t.
+        if (output_.interval() > 0)
+          next_output_ = std::min(next_output_, t_ + output_.interval());
         integrator_.set_held_dt(g.held_dt);
         q_final_ = g.q_final, q_min_ = g.q_min, q_max_ = g.q_max;
         output_.restore_records(g.records);
