@@ -153,9 +153,7 @@ namespace shard::coupling
       }
     region_names_          = base::split(region_names_text_, ',');
     adaptive_region_names_ = base::split(adaptive_region_names_text_, ',');
-    std::vector<std::string> all_names(region_names_);
-    all_names.insert(all_names.end(), adaptive_region_names_.begin(), adaptive_region_names_.end());
-    for (const auto &name : all_names)
+    for (const auto &name : all_region_names())
       {
         if (declared_.count(name))
           continue;
@@ -194,9 +192,7 @@ namespace shard::coupling
     base::check_names(source, "G - Conversion/regions", region_names_text_, region_names_, true);
     base::check_names(source, "G - Conversion/adaptive regions", adaptive_region_names_text_, adaptive_region_names_,
                       true);
-    std::vector<std::string> all_names(region_names_);
-    all_names.insert(all_names.end(), adaptive_region_names_.begin(), adaptive_region_names_.end());
-    for (const auto &name : all_names)
+    for (const auto &name : all_region_names())
       {
         const auto &r = *declared_.at(name);
         try
@@ -238,23 +234,19 @@ namespace shard::coupling
         whole.shape = "body";
         regions.emplace_back(whole, b);
       }
+    // A named region (of 'regions' or 'adaptive regions') with its body resolved.
+    const auto resolve = [&](const std::string &name) {
+      const auto &r = *declared_.at(name);
+      const int   b = discretization.body_index(r.body);
+      if (b < 0)
+        source.fail("G - Conversion/" + name + "/body", r.body, "no body named '" + r.body + "' in 'B - Mesh/body names'.");
+      return Region(r, b);
+    };
     for (const auto &name : region_names_)
-      {
-        const auto &r = *declared_.at(name);
-        const int   b = discretization.body_index(r.body);
-        if (b < 0)
-          source.fail("G - Conversion/" + name + "/body", r.body, "no body named '" + r.body + "' in 'B - Mesh/body names'.");
-        regions.emplace_back(r, b);
-      }
+      regions.push_back(resolve(name));
     adaptive_regions_.clear();
     for (const auto &name : adaptive_region_names_)
-      {
-        const auto &r = *declared_.at(name);
-        const int   b = discretization.body_index(r.body);
-        if (b < 0)
-          source.fail("G - Conversion/" + name + "/body", r.body, "no body named '" + r.body + "' in 'B - Mesh/body names'.");
-        adaptive_regions_.emplace_back(r, b);
-      }
+      adaptive_regions_.push_back(resolve(name));
     adaptive_body_.assign(discretization.bodies().size(), false);
     adaptive_bodies_.clear();
     for (const auto &name : base::split(adaptive_bodies_text_, ','))
@@ -287,6 +279,14 @@ namespace shard::coupling
         }
     n_converted_ = Utilities::MPI::sum(owned, discretization.communicator());
     n_events_    = 0;
+  }
+
+  std::vector<std::string>
+  Conversion::all_region_names() const
+  {
+    std::vector<std::string> names(region_names_);
+    names.insert(names.end(), adaptive_region_names_.begin(), adaptive_region_names_.end());
+    return names;
   }
 
   std::vector<unsigned int>

@@ -689,14 +689,14 @@ namespace shard::particles
         const double H = size * h;
 
         // Aggregates of the owned particles, numbered in the order of their cube (deterministic).
+        std::vector<std::array<long long, 4>>             key(n_owned_);
         std::map<std::array<long long, 4>, unsigned int> index;
-        std::vector<unsigned int>                         aggregate(n_owned_);
         for (unsigned int i = 0; i < n_owned_; ++i)
           {
-            std::array<long long, 4> key{{static_cast<long long>(component[i]), 0, 0, 0}};
+            key[i] = {{static_cast<long long>(component[i]), 0, 0, 0}};
             for (unsigned int c = 0; c < 3; ++c)
-              key[c + 1] = static_cast<long long>(std::floor(position_j[i][c] / H));
-            index.emplace(key, 0u);
+              key[i][c + 1] = static_cast<long long>(std::floor(position_j[i][c] / H));
+            index.emplace(key[i], 0u);
           }
         {
           unsigned int n = 0;
@@ -704,13 +704,9 @@ namespace shard::particles
             entry.second = n++;
           n_aggregates_ = n;
         }
+        std::vector<unsigned int> aggregate(n_owned_);
         for (unsigned int i = 0; i < n_owned_; ++i)
-          {
-            std::array<long long, 4> key{{static_cast<long long>(component[i]), 0, 0, 0}};
-            for (unsigned int c = 0; c < 3; ++c)
-              key[c + 1] = static_cast<long long>(std::floor(position_j[i][c] / H));
-            aggregate[i] = index.at(key);
-          }
+          aggregate[i] = index.at(key[i]);
         // Per aggregate: centroid and principal directions; a direction is kept when its
         // variance is at least 1 % of the largest one and the aggregate has 4 particles or more.
         std::vector<Eigen::Vector3d> centroid(n_aggregates_, Eigen::Vector3d::Zero());

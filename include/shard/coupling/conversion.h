@@ -209,6 +209,9 @@ namespace shard::coupling
     std::string                                               adaptive_region_names_text_;
     std::vector<std::string>                                  adaptive_region_names_;
     std::vector<Region>                                       adaptive_regions_;
+    /// The names of 'regions' and 'adaptive regions', in that order (each has a subsection).
+    std::vector<std::string>
+    all_region_names() const;
     double                                                    plastic_strain_ = 0., scaled_damage_ = 0.;
     double                                                    min_jacobian_ = 0., dt_floor_ = 0.;
     unsigned int                                              check_interval_ = 1;
