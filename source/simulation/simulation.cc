@@ -5,6 +5,7 @@
 #include <shard/fe/hex_kernel.h>
 #include <shard/base/plot.h>
 #include <shard/base/parallel.h>
+#include <shard/base/progress.h>
 #include <shard/simulation/simulation.h>
 
 #include <deal.II/base/mpi.h>
@@ -299,6 +300,9 @@ namespace shard
       }
 
     auto         last_progress   = Clock::now();
+    const auto   loop_start      = last_progress;
+    const double loop_start_time = t_;
+    base::ProgressEstimate pace; // ETA from the pace of the last progress lines
     const double end             = integrator_.end_time();
     bool         stop            = false;
     try
@@ -475,8 +479,8 @@ namespace shard
               if (rank == 0 && output_.progress_interval() > 0 && (since >= output_.progress_interval() || last))
                 {
                   last_progress  = Clock::now();
-                  const double w = std::chrono::duration<double>(Clock::now() - start).count();
-                  const double eta = t_ > 0 ? w * (end - t_) / t_ : 0;
+                  pace.add(std::chrono::duration<double>(last_progress - loop_start).count(), t_);
+                  const double eta = pace.remaining(end, loop_start_time);
                   std::fprintf(stderr,
                                "step %8u  t = %.4e s of %.4e s (%5.1f %%)  dt = %.3e s  energy error %+.2e  "
                                "ETA %.0f s\n",
