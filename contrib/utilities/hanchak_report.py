@@ -110,13 +110,18 @@ def spacing_of(out_dir):
     return float(parameter(out_dir, "B - Mesh/slab/element size") or SPACING)
 
 
+def exit_time_of(rows):
+    """Time of the first history row with the tip past the rear face (None: not yet)."""
+    return next((float(r["time"]) for r in rows if float(r["tip_z"]) < REAR), None)
+
+
 def perforation(rows):
     """(perforated, rule) of a history: rule 'tail', 'levelled' or None (module docstring)."""
     last = rows[-1]
     if float(last["tail_z"]) < REAR:
         return True, "tail"
     t_end, v_end = float(last["time"]), -float(last["v_projectile"])
-    exit_time = next((float(r["time"]) for r in rows if float(r["tip_z"]) < REAR), None)
+    exit_time = exit_time_of(rows)
     if exit_time is None or exit_time > t_end - LEVEL_WINDOW or v_end <= 0:
         return False, None
     before = next(r for r in reversed(rows) if float(r["time"]) <= t_end - LEVEL_WINDOW)
@@ -130,7 +135,7 @@ def run_report(out_dir):
     last = rows[-1]
     tail, v = float(last["tail_z"]), -float(last["v_projectile"])
     perforated, rule = perforation(rows)
-    exit_time = next((float(r["time"]) for r in rows if float(r["tip_z"]) < REAR), None)
+    exit_time = exit_time_of(rows)
     with open(os.path.join(out_dir, "summary.json")) as f:
         summary = json.load(f)
     spacing = spacing_of(out_dir)

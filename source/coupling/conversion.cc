@@ -244,10 +244,10 @@ namespace shard::coupling
     };
     for (const auto &name : region_names_)
       regions.push_back(resolve(name));
-    adaptive_regions_.clear();
+    std::vector<Region> adaptive_regions;
     for (const auto &name : adaptive_region_names_)
-      adaptive_regions_.push_back(resolve(name));
-    adaptive_body_.assign(discretization.bodies().size(), false);
+      adaptive_regions.push_back(resolve(name));
+    std::vector<bool> adaptive_body(discretization.bodies().size(), false);
     adaptive_bodies_.clear();
     for (const auto &name : base::split(adaptive_bodies_text_, ','))
       {
@@ -255,7 +255,7 @@ namespace shard::coupling
         if (b < 0)
           source.fail("G - Conversion/adaptive bodies", adaptive_bodies_text_,
                       "no body named '" + name + "' in 'B - Mesh/body names'.");
-        adaptive_body_[b] = true;
+        adaptive_body[b] = true;
         adaptive_bodies_.push_back(b);
       }
     if (adaptive() && plastic_strain_ == 0 && scaled_damage_ == 0 && min_jacobian_ == 0 && dt_floor_ == 0)
@@ -265,17 +265,24 @@ namespace shard::coupling
 
     const auto &tria = discretization.triangulation();
     converted_.assign(tria.n_active_cells(), false);
+    adaptive_cell_.assign(tria.n_active_cells(), false);
     unsigned long long owned = 0;
     for (const auto &cell : tria.active_cell_iterators())
       if (!cell->is_artificial())
         {
-          const auto                  c = cell->center();
-          const std::array<double, 3> x = {{c[0], c[1], c[2]}};
-          bool                        in = false;
+          const auto                  c    = cell->center();
+          const std::array<double, 3> x    = {{c[0], c[1], c[2]}};
+          const int                   body = static_cast<int>(cell->material_id());
+          bool                        in   = false;
           for (const auto &r : regions)
-            in |= r.body() == static_cast<int>(cell->material_id()) && r.contains(x);
+            in |= r.body() == body && r.contains(x);
           converted_[cell->active_cell_index()] = in;
           owned += in && cell->is_locally_owned();
+          // Adaptive: a cell of an adaptive body, inside one of the adaptive regions if any.
+          bool adaptive = adaptive_body[body] && adaptive_regions.empty();
+          for (const auto &r : adaptive_regions)
+            adaptive |= adaptive_body[body] && r.body() == body && r.contains(x);
+          adaptive_cell_[cell->active_cell_index()] = adaptive;
         }
     n_converted_ = Utilities::MPI::sum(owned, discretization.communicator());
     n_events_    = 0;
@@ -296,20 +303,8 @@ namespace shard::coupling
     const auto               &X = discretization_->reference_positions();
     for (unsigned int e = 0; e < hex.n_local_elements(); ++e)
       {
-        if (!adaptive_body_[hex.body(e)])
+        if (!adaptive_cell_[hex.cell_index(e)])
           continue;
-        if (!adaptive_regions_.empty())
-          {
-            std::array<double, 3> centre{{0., 0., 0.}};
-            for (unsigned int a = 0; a < 8; ++a)
-              for (unsigned int c = 0; c < 3; ++c)
-                centre[c] += 0.125 * X.local_element(hex.node(e, a) + c);
-            bool in = false;
-            for (const auto &r : adaptive_regions_)
-              in |= r.body() == static_cast<int>(hex.body(e)) && r.contains(centre);
-            if (!in)
-              continue;
-          }
         bool convert = false;
         if (plastic_strain_ > 0)
           convert |= hex.state_value(e, materials::slot::plastic_strain) >= plastic_strain_;

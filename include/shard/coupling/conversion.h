@@ -205,10 +205,9 @@ namespace shard::coupling
     bool                                                      declared_main_ = false;
     std::string                                               adaptive_bodies_text_;
     std::vector<unsigned int>                                 adaptive_bodies_;
-    /// 'adaptive regions': the names and their resolved shapes (empty: the whole bodies).
+    /// 'adaptive regions': the names (empty: the whole adaptive bodies).
     std::string                                               adaptive_region_names_text_;
     std::vector<std::string>                                  adaptive_region_names_;
-    std::vector<Region>                                       adaptive_regions_;
     /// The names of 'regions' and 'adaptive regions', in that order (each has a subsection).
     std::vector<std::string>
     all_region_names() const;
@@ -218,7 +217,9 @@ namespace shard::coupling
 
     const mesh::Discretization *discretization_ = nullptr;
     std::vector<bool>           converted_;
-    std::vector<bool>           adaptive_body_;
+    /// Per active cell: whether it may convert during the run (an adaptive body's cell whose
+    /// reference centre lies in an adaptive region, or any such cell without adaptive regions).
+    std::vector<bool>           adaptive_cell_;
     unsigned long long          n_converted_ = 0;
     unsigned int                n_events_    = 0;
   };
