@@ -109,6 +109,11 @@ namespace
           std::cout << "shard: the path ended at a limit point of the material: " << result.message << "\n";
         return result.exit_code;
       }
+    catch (const shard::base::CommandLineError &e)
+      {
+        std::cerr << "shard: " << e.what() << "\n";
+        return 2;
+      }
     catch (const shard::base::InputError &e)
       {
         std::cerr << "shard: input error: " << e.what() << "\n";
@@ -116,7 +121,7 @@ namespace
       }
     catch (const std::exception &e)
       {
-        std::cerr << "shard: error: " << e.what() << "\n";
+        std::cerr << "shard: error: " << shard::base::exception_reason(e) << "\n";
         return 1;
       }
   }
@@ -206,13 +211,25 @@ main(int argc, char **argv)
       const auto result = simulation.run();
       if (is_root(comm))
         {
-          if (result.exit_code != 0)
-            std::cerr << "\nshard: run stopped: " << result.message
-                      << "\nThe output written before this step is intact.\n";
-          std::cerr << "\nResults in " << simulation.output_directory() << "/: summary.json, history.csv, "
-                    << "solution.pvd (open in ParaView)\n";
+          if (!result.wrote_output)
+            std::cerr << "\nshard: run stopped at step 0: " << result.message << "\nNothing was written; "
+                      << simulation.output_directory() << "/ is as it was.\n";
+          else
+            {
+              if (result.exit_code != 0)
+                std::cerr << "\nshard: run stopped: " << result.message
+                          << "\nThe output written before this step is intact.\n";
+              std::cerr << "\nResults in " << simulation.output_directory() << "/: summary.json, history.csv, "
+                        << "solution.pvd (open in ParaView)\n";
+            }
         }
       return result.exit_code;
+    }
+  catch (const shard::base::CommandLineError &e)
+    {
+      if (is_root(comm))
+        std::cerr << "shard: " << e.what() << "\n";
+      return 2;
     }
   catch (const shard::base::InputError &e)
     {
@@ -223,7 +240,7 @@ main(int argc, char **argv)
   catch (const std::exception &e)
     {
       if (is_root(comm))
-        std::cerr << "shard: error: " << e.what() << "\n";
+        std::cerr << "shard: error: " << shard::base::exception_reason(e) << "\n";
       return 1;
     }
 }

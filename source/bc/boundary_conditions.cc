@@ -6,7 +6,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
+#include <set>
 #include <sstream>
 
 namespace shard::bc
@@ -172,9 +174,13 @@ namespace shard::bc
       {
         const auto &c    = *params_.at(name);
         const int   body = discretization.body_index(c.body);
+        const std::string path = "I - Boundary conditions/" + name + "/";
         if (body < 0)
-          throw base::InputError("I - Boundary conditions/" + name + "/body = " + c.body +
-                                 ": no such body in 'B - Mesh/body names'.");
+          source.fail(path + "body", c.body, "no such body in 'B - Mesh/body names'.");
+        if (c.boundary_id >= 0 && !discretization.boundary_ids(body).count(static_cast<unsigned int>(c.boundary_id)))
+          source.fail(path + "boundary id", std::to_string(c.boundary_id),
+                      "body '" + c.body + "' has no faces with this id; its boundary ids are " +
+                        discretization.boundary_ids_text(body) + " (or -1: every boundary face).");
         Active a;
         a.p = &c;
         if (c.type == "traction")
@@ -204,6 +210,67 @@ namespace shard::bc
         reaction_[name] = {{0, 0, 0}};
         active_.push_back(std::move(a));
       }
+    // Two kinematic conditions that set the same component of the same node contradict each
+    // other: the later one wins at every kick, and the reactions of both are booked as boundary
+    // work, so the energy balance is wrong there (two fixed conditions only repeat each other).
+    {
+      const auto &X = discretization.reference_positions();
+      for (unsigned int i = 0; i < active_.size(); ++i)
+        for (unsigned int j = i + 1; j < active_.size(); ++j)
+          {
+            const auto &a = *active_[i].p, &b = *active_[j].p;
+            const bool  kinematic =
+              (a.type == "fixed" || a.type == "velocity") && (b.type == "fixed" || b.type == "velocity");
+            if (!kinematic || (a.type == "fixed" && b.type == "fixed") || a.body != b.body)
+              continue;
+            std::string shared;
+            for (unsigned int d = 0; d < 3; ++d)
+              if (active_[i].mask[d] && active_[j].mask[d])
+                shared += (shared.empty() ? "" : ", ") + std::string(1, "xyz"[d]);
+            if (shared.empty())
+              continue;
+            // Owned nodes of both (sorted lists), counted over all ranks; one of them for the message.
+            std::vector<unsigned int> common;
+            std::set_intersection(active_[i].nodes.begin(), active_[i].nodes.end(), active_[j].nodes.begin(),
+                                  active_[j].nodes.end(), std::back_inserter(common));
+            std::ostringstream where;
+            if (!common.empty())
+              where << "(" << X.local_element(common[0]) << ", " << X.local_element(common[0] + 1) << ", "
+                    << X.local_element(common[0] + 2) << ") m";
+            const auto n = Utilities::MPI::sum(static_cast<unsigned long long>(common.size()),
+                                               discretization.communicator());
+            if (n == 0)
+              continue;
+            std::string at;
+            for (const auto &w : Utilities::MPI::all_gather(discretization.communicator(), where.str()))
+              if (at.empty())
+                at = w;
+            source.fail("I - Boundary conditions/" + b.name + "/type", b.type,
+                        "conflicts with condition '" + a.name + "' (" + a.type + "): both set the " + shared +
+                          " velocity of " + std::to_string(n) + " node(s) of body '" + a.body + "' (boundary ids " +
+                          std::to_string(a.boundary_id) + " and " + std::to_string(b.boundary_id) +
+                          "; one at " + at + "). Give each component of a node one kinematic condition.");
+          }
+    }
+    // Prescribed velocities and tractions must be finite where they act, at t = 0 (later times
+    // are checked by the energy balance of every history row).
+    {
+      std::string local;
+      for (auto &a : active_)
+        if (a.function && local.empty())
+          {
+            const auto where = base::non_finite_at(*a.function, reference_points(a), 0.);
+            if (!where.empty())
+              local = a.p->name + "\n" + where;
+          }
+      for (const auto &m : Utilities::MPI::all_gather(discretization.communicator(), local))
+        if (!m.empty())
+          {
+            const auto name = m.substr(0, m.find('\n'));
+            source.fail("I - Boundary conditions/" + name + "/function", params_.at(name)->function,
+                        "is not finite: " + m.substr(m.find('\n') + 1) + ".");
+          }
+    }
     // Walls act last so that they only change the normal velocity left by the other conditions.
     std::stable_partition(active_.begin(), active_.end(),
                           [](const Active &a) { return a.p->type != "rigid wall"; });
@@ -447,6 +514,35 @@ namespace shard::bc
             }
       }
     return change;
+  }
+
+  std::vector<Point<3>>
+  BoundaryConditions::reference_points(const Active &a) const
+  {
+    const auto           &X = discretization_->reference_positions();
+    std::vector<Point<3>> points;
+    const auto            add = [&](const unsigned int node) {
+      points.emplace_back(X.local_element(node), X.local_element(node + 1), X.local_element(node + 2));
+    };
+    if (a.p->type == "traction")
+      for (const auto &[node, area] : a.areas)
+        add(node);
+    else
+      for (const unsigned int node : a.nodes)
+        add(node);
+    return points;
+  }
+
+  std::string
+  BoundaryConditions::non_finite_report(const double t) const
+  {
+    for (const auto &a : active_)
+      if (a.function)
+        {
+          if (const auto where = base::non_finite_at(*a.function, reference_points(a), t); !where.empty())
+            return "I - Boundary conditions/" + a.p->name + "/function = " + a.p->function + " is not finite: " + where;
+        }
+    return "";
   }
 
   std::vector<std::pair<std::string, int>>

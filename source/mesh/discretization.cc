@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/base/function.h>
 #include <shard/mesh/discretization.h>
+#include <shard/mesh/gmsh_check.h>
 
 #include <deal.II/dofs/dof_tools.h>
 #include <deal.II/fe/fe_q.h>
@@ -12,6 +13,8 @@
 #include <array>
 #include <cmath>
 #include <fstream>
+#include <iomanip>
+#include <sstream>
 #include <regex>
 #include <set>
 
@@ -77,6 +80,109 @@ namespace shard::mesh
     axis_index(const std::string &axis)
     {
       return axis == "x" ? 0 : axis == "y" ? 1 : axis == "z" ? 2 : -1;
+    }
+
+    /// The number of cells build_body() makes for a generated shape (box, rod, cylinder, ogive),
+    /// computed in floating point without meshing (so that an absurd size is refused before any
+    /// allocation), and the key that sets it. For gmsh the count comes from the file's scan.
+    std::pair<double, std::string>
+    generated_cells(const BodyParameters &b)
+    {
+      const std::string size_key = b.element_size > 0 ? "element size" : "refinement";
+      if (b.shape == "box" || b.shape == "rod")
+        {
+          std::array<double, 3> lengths{{b.length, b.width, b.width}};
+          std::array<double, 3> fine_lower{}, fine_upper{}, lower{}, upper{};
+          if (b.shape == "box")
+            {
+              lower = base::parse_point(b.lower_corner), upper = base::parse_point(b.upper_corner);
+              fine_lower = b.fine_lower_corner.empty() ? lower : base::parse_point(b.fine_lower_corner);
+              fine_upper = b.fine_upper_corner.empty() ? upper : base::parse_point(b.fine_upper_corner);
+              for (unsigned int d = 0; d < 3; ++d)
+                lengths[d] = upper[d] - lower[d];
+            }
+          if (!(b.element_size > 0))
+            return {std::pow(8., b.refinement), size_key};
+          double cells = 1;
+          for (unsigned int d = 0; d < 3; ++d)
+            {
+              const double h = b.element_size;
+              if (b.shape == "box" && b.grading > 1)
+                {
+                  // Core of cells of size h0 <= h, then cells growing by the grading ratio r:
+                  // a side of length L takes the fewest n with h0 (r + ... + r^n) >= L.
+                  const double a = std::max(lower[d], std::min(fine_lower[d], upper[d]));
+                  const double c = std::min(upper[d], std::max(fine_upper[d], a));
+                  const double n_core = c - a > 1e-12 * h ? std::max(1., std::ceil((c - a) / h - 1e-6)) : 0.;
+                  const double h0 = n_core > 0 ? (c - a) / n_core : h, r = b.grading;
+                  const auto   side = [&](const double L) {
+                    return L > 1e-12 * h0 ? std::ceil(std::log1p(L * (r - 1) / (h0 * r)) / std::log(r) - 1e-9) : 0.;
+                  };
+                  cells *= n_core + side(a - lower[d]) + side(upper[d] - c);
+                }
+              else
+                cells *= std::max(1., std::ceil(lengths[d] / h - 1e-6));
+            }
+          return {cells, size_key};
+        }
+      if (b.shape == "cylinder" || b.shape == "ogive")
+        {
+          const double side0 = std::sqrt(M_PI / 5.) * b.radius;
+          const double n_ref =
+            b.element_size > 0 ? std::max(0., std::round(std::log2(side0 / b.element_size))) : b.refinement;
+          const double axial   = b.element_size > 0 ? b.element_size : side0 / std::pow(2., n_ref);
+          const double n_axial = std::max(1., std::round(b.length / (axial * std::pow(2., n_ref))));
+          return {5. * n_axial * std::pow(8., n_ref), size_key};
+        }
+      return {0., "mesh file"};
+    }
+
+    /// The cell of @p tria (vertices through @p transform) with the smallest scaled corner
+    /// Jacobian det / (longest edge)^3; returns that value (1 for a cube, <= 0 for a degenerate or
+    /// inverted cell, not finite for non-finite coordinates), its index and its centre.
+    struct WorstCell
+    {
+      double             quality = 1e300, volume = 0;
+      unsigned int       index   = 0;
+      dealii::Point<3>   centre;
+    };
+
+    WorstCell
+    worst_cell(const Triangulation<3> &tria, const std::function<Point<3>(const Point<3> &)> &transform)
+    {
+      WorstCell    worst;
+      unsigned int index = 0;
+      for (const auto &cell : tria.active_cell_iterators())
+        {
+          std::array<Point<3>, 8> x;
+          for (unsigned int v = 0; v < 8; ++v)
+            x[v] = transform(cell->vertex(v));
+          double longest = 0, smallest = 1e300, volume = 0;
+          for (unsigned int v = 0; v < 8; ++v)
+            {
+              // Edges from corner v along the three reference directions, oriented +x, +y, +z.
+              Tensor<1, 3> e[3];
+              for (unsigned int d = 0; d < 3; ++d)
+                {
+                  const unsigned int w = v ^ (1u << d);
+                  e[d]                 = (v & (1u << d)) ? x[v] - x[w] : x[w] - x[v];
+                  longest              = std::max(longest, e[d].norm());
+                }
+              const double det = e[0] * cross_product_3d(e[1], e[2]);
+              smallest         = std::min(smallest, std::isfinite(det) ? det : -1e300);
+              volume += det / 8;
+            }
+          const double quality = longest > 0 && std::isfinite(longest) ? smallest / (longest * longest * longest) : -1;
+          if (!(quality >= worst.quality))
+            {
+              worst.quality = quality;
+              worst.volume  = volume;
+              worst.index   = index;
+              worst.centre  = (x[0] + x[7]) / 2;
+            }
+          ++index;
+        }
+      return worst;
     }
 
     /// Meshes one body in serial; returns the vertex transform to apply afterwards.
@@ -184,10 +290,8 @@ namespace shard::mesh
         }
       catch (const std::exception &e)
         {
-          std::string what = e.what();
-          what             = std::regex_replace(what, std::regex("\\s*\\n\\s*"), " ");
           source.fail("B - Mesh/" + b.name + "/mesh file", b.mesh_file,
-                      "'" + path + "' is not a readable Gmsh mesh of hexahedra: " + what);
+                      "'" + path + "' is not a readable Gmsh mesh of hexahedra: " + base::exception_reason(e));
         }
       const double s = b.mesh_scale;
       return [=](const Point<3> &p) { return Point<3>(s * p + o); };
@@ -219,6 +323,12 @@ namespace shard::mesh
                           "0 keeps the partition by cell count. doc/performance.md, MPI scaling. Unit: 1. "
                           "Range: >= 0.",
                           Patterns::Double(0));
+        prm.add_parameter("max cells", max_cells_,
+                          "Upper bound on the number of cells of the whole model, checked from the bodies' "
+                          "dimensions and element sizes (and the hexahedra of each .msh file) before anything is "
+                          "meshed, so that a wrong size stops with a message instead of exhausting the memory. An "
+                          "FE cell needs about 2.7 KB on one rank. Unit: 1. Range: >= 1.",
+                          Patterns::Integer(1));
         added = true;
       }
     body_names_ = base::split(body_names_text_, ',');
@@ -405,10 +515,84 @@ namespace shard::mesh
     std::vector<Point<3>>    vertices;
     std::vector<CellData<3>> cells;
     SubCellData              faces;
+    // The model's size, before anything is meshed: every generated body's cell count.
+    double total_cells = 0;
+    for (const auto &b : bodies_)
+      {
+        auto [cells, key] = generated_cells(b);
+        if (b.shape == "gmsh")
+          {
+            // The file's structure, line by line, before deal.II's reader sees it (a bounded read:
+            // GridIn allocates by counts it reads); its hexahedra count towards the bound.
+            const std::string path =
+              (!b.mesh_file.empty() && b.mesh_file[0] == '/') ? b.mesh_file : source.directory() + b.mesh_file;
+            std::ifstream in(path, std::ios::binary);
+            if (!in)
+              source.fail("B - Mesh/" + b.name + "/mesh file", b.mesh_file,
+                          "cannot open '" + path + "'. It must be a readable Gmsh .msh file of hexahedra (path "
+                          "relative to the .prm file).");
+            try
+              {
+                cells = static_cast<double>(check_gmsh(in).n_hexahedra);
+              }
+            catch (const GmshError &e)
+              {
+                source.fail("B - Mesh/" + b.name + "/mesh file", b.mesh_file,
+                            "'" + path + "' is not a readable Gmsh mesh of hexahedra: " + e.what());
+              }
+          }
+        total_cells += cells;
+        if (!(total_cells <= max_cells_))
+          {
+            std::ostringstream value, count;
+            if (key == "mesh file")
+              value << b.mesh_file;
+            else
+              value << (key == "refinement" ? static_cast<double>(b.refinement) : b.element_size);
+            count << std::setprecision(3) << cells;
+            source.fail("B - Mesh/" + b.name + "/" + key, value.str(),
+                        "gives " + count.str() + " cells" +
+                          (total_cells > cells ? " (with the bodies before it, more)" : std::string()) +
+                          ", more than 'B - Mesh/max cells' = " + std::to_string(max_cells_) +
+                          " (about 2.7 KB of memory per cell; doc/manual/user_guide.md, Bad input). Use a larger element "
+                          "size, or raise 'max cells' if the machine has the memory.");
+          }
+      }
+    body_boundary_ids_.assign(bodies_.size(), {});
     for (unsigned int k = 0; k < bodies_.size(); ++k)
       {
         Triangulation<3> tria;
         const auto       transform = build_body(tria, bodies_[k], source);
+        {
+          // Degenerate elements are refused here, naming the body's key, not found as an
+          // inverted element at step 1.
+          const auto       &b     = bodies_[k];
+          const WorstCell   worst = worst_cell(tria, transform);
+          if (!(worst.quality > 1e-9))
+            {
+              const std::string key = b.shape == "gmsh" ? (b.mesh_scale < 1e-100 ? "mesh scale" : "mesh file") :
+                                      b.shape == "box"  ? "upper corner" :
+                                      b.shape == "rod"  ? (b.width < b.length ? "width" : "length") :
+                                                          "radius";
+              std::ostringstream value, why;
+              if (key == "mesh file" || key == "upper corner")
+                value << (key == "mesh file" ? b.mesh_file : b.upper_corner);
+              else
+                value << (key == "mesh scale" ? b.mesh_scale : key == "width" ? b.width : key == "length" ? b.length : b.radius);
+              why << std::setprecision(4) << "element " << worst.index + 1 << " of body '" << b.name << "' (centre "
+                  << worst.centre[0] << ", " << worst.centre[1] << ", " << worst.centre[2] << " m) is "
+                  << (!(worst.quality > -1e299) ? "not finite" : worst.quality > 0 ? "degenerate" : worst.volume > 0 ? "inverted at a corner" : "of zero or negative volume")
+                  << " (smallest corner Jacobian / longest edge^3 = " << worst.quality
+                  << "; a cube has 1, shard needs > 1e-9): the body's dimensions, element size"
+                  << (b.shape == "gmsh" ? ", the file's vertices and mesh scale" : "")
+                  << " must give elements of finite, positive volume.";
+              source.fail("B - Mesh/" + b.name + "/" + key, value.str(), why.str());
+            }
+          for (const auto &cell : tria.active_cell_iterators())
+            for (const unsigned int f : cell->face_indices())
+              if (cell->face(f)->at_boundary())
+                body_boundary_ids_[k].insert(cell->face(f)->boundary_id());
+        }
         std::map<unsigned int, unsigned int> vmap;
         const auto global_vertex = [&](const unsigned int v, const Point<3> &p) {
           const auto [it, inserted] = vmap.emplace(v, vertices.size());
@@ -541,6 +725,15 @@ namespace shard::mesh
       if (area.local_element(i) > 0)
         out.emplace_back(i, area.local_element(i));
     return out;
+  }
+
+  std::string
+  Discretization::boundary_ids_text(const unsigned int body) const
+  {
+    std::string out;
+    for (const auto id : boundary_ids(body))
+      out += (out.empty() ? "" : ", ") + std::to_string(id);
+    return out.empty() ? std::string("none") : out;
   }
 
   std::vector<unsigned int>

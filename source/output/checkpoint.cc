@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/base/binary_archive.h>
 #include <shard/output/checkpoint.h>
 
 #include <deal.II/base/mpi.h>
@@ -27,19 +28,9 @@ namespace shard::output
   namespace
   {
     // 2: the contact state carries the contact normals of node-to-surface slaves.
-    constexpr const char *magic = "shard checkpoint 2";
-
-    std::uint64_t
-    fnv1a(const std::string &data)
-    {
-      std::uint64_t h = 14695981039346656037ull;
-      for (const unsigned char c : data)
-        {
-          h ^= c;
-          h *= 1099511628211ull;
-        }
-      return h;
-    }
+    // 3: the global state carries the FNV-1a hashes of history.csv and fragments.csv.
+    constexpr const char *magic = "shard checkpoint 3";
+    using base::fnv1a;
 
     /// Writes @p data to @p path through `path.tmp`, fsync and rename. @p pause_half: test hook
     /// that stops (sleeps) after half of the data is on disk, so a test can kill the process
@@ -270,7 +261,9 @@ namespace shard::output
     std::string manifest = restart_from_;
     if (std::filesystem::is_directory(restart_from_))
       {
-        // The newest complete checkpoint of the directory.
+        // The newest checkpoint of the directory. One whose manifest is damaged (it is written
+        // last, atomically, so this is not an interrupted write) is refused, not skipped: the run
+        // would silently continue from an older state.
         long long best = -1;
         for (const auto &entry : std::filesystem::directory_iterator(restart_from_))
           {
@@ -278,17 +271,18 @@ namespace shard::output
             const long long   step = step_of(name);
             if (step < 0 || name.size() < 9 || name.substr(name.size() - 9) != ".manifest" || step <= best)
               continue;
-            Manifest    m;
-            std::string why;
-            if (parse_manifest(entry.path().string(), m, why))
-              {
-                best     = step;
-                manifest = entry.path().string();
-              }
+            best     = step;
+            manifest = entry.path().string();
           }
         if (best < 0)
           source.fail("N - Checkpoint/restart from", restart_from_,
                       "the directory holds no complete checkpoint (checkpoint_<step>.manifest).");
+        Manifest    m;
+        std::string why;
+        if (!parse_manifest(manifest, m, why))
+          source.fail("N - Checkpoint/restart from", restart_from_,
+                      "the newest checkpoint manifest '" + manifest + "' " + why +
+                        ": remove it to restart from the one before, or name that one's manifest.");
       }
     read(manifest, source);
   }

@@ -11,6 +11,8 @@
 #include <fstream>
 #include <sstream>
 
+#include <unistd.h>
+
 namespace shard::output
 {
   using namespace dealii;
@@ -63,15 +65,40 @@ namespace shard::output
     particles_      = &particles;
     records_.clear();
     particle_records_.clear();
+    // Only checked here: a run that stops before its first step leaves no trace (create_directory()).
+    std::string problem;
     if (Utilities::MPI::this_mpi_process(discretization.communicator()) == 0)
+      {
+        std::error_code       ec;
+        std::filesystem::path p = std::filesystem::absolute(directory_, ec);
+        while (!ec && !std::filesystem::exists(p, ec) && p.has_parent_path() && p != p.parent_path())
+          p = p.parent_path();
+        if (ec || !std::filesystem::is_directory(p, ec))
+          problem = "'" + p.string() + "' is not a directory";
+        else if (::access(p.c_str(), W_OK | X_OK) != 0)
+          problem = "'" + p.string() + "' is not writable";
+      }
+    problem = Utilities::MPI::broadcast(discretization.communicator(), problem, 0);
+    if (!problem.empty())
+      throw base::InputError("K - Output/directory = " + directory_ + ": cannot create the directory (" + problem +
+                             ").");
+  }
+
+  void
+  FieldOutput::create_directory() const
+  {
+    std::string problem;
+    if (Utilities::MPI::this_mpi_process(discretization_->communicator()) == 0)
       {
         std::error_code ec;
         std::filesystem::create_directories(directory_, ec);
         if (ec || !std::filesystem::is_directory(directory_))
-          throw base::InputError("K - Output/directory = " + directory_ + ": cannot create the directory (" +
-                                 ec.message() + ").");
+          problem = ec.message();
       }
-    MPI_Barrier(discretization.communicator());
+    problem = Utilities::MPI::broadcast(discretization_->communicator(), problem, 0);
+    if (!problem.empty())
+      throw std::runtime_error("K - Output/directory = " + directory_ + ": cannot create the directory (" + problem +
+                               ").");
   }
 
   void

@@ -95,6 +95,41 @@ namespace shard::output
                     (it.kind == "l2_error" ? " (a body or 'all', then three expressions without spaces)" : "") + ".";
             return {};
           }
+        // Numbers among the arguments: finite, and a range that selects something.
+        const auto number = [&](const std::string &word, const std::string &what) {
+          std::size_t used = 0;
+          double      x    = 0;
+          try
+            {
+              x = std::stod(word, &used);
+            }
+          catch (const std::exception &)
+            {
+              used = 0;
+            }
+          if (used != word.size() || !std::isfinite(x))
+            error = "entry '" + base::trim(entry) + "': " + what + " '" + word + "' is not a finite number.";
+          return x;
+        };
+        if (it.kind == "stress" || it.kind == "velocity")
+          for (unsigned int i = 0; i < 3 && error.empty(); ++i)
+            number(it.args[i], std::string(1, "xyz"[i]));
+        if (it.kind == "kinetic_energy")
+          {
+            const double from = number(it.args[2], "from");
+            const double to   = error.empty() ? number(it.args[3], "to") : 0.;
+            if (error.empty() && !(from <= to))
+              error = "entry '" + base::trim(entry) + "': from " + it.args[2] + " is larger than to " + it.args[3] +
+                      ": the range [from, to] (m) selects nothing.";
+          }
+        if (optional_id && error.empty())
+          {
+            const double id = number(it.args[2], "boundary id");
+            if (error.empty() && !(id >= 0 && id <= 255 && id == std::floor(id)))
+              error = "entry '" + base::trim(entry) + "': boundary id '" + it.args[2] + "' must be a whole number from 0 to 255.";
+          }
+        if (!error.empty())
+          return {};
         if (it.kind == "l2_error")
           try
             {
@@ -109,6 +144,16 @@ namespace shard::output
                       " " + it.args[3] + "': " + why;
               return {};
             }
+        if (it.kind == "l2_error")
+          {
+            // At the origin at t = 0 (a constant 1/0, sqrt(-1)); prepare() checks every node.
+            const auto where = base::non_finite_at(*it.exact, {Point<3>()}, 0.);
+            if (!where.empty())
+              {
+                error = "entry '" + base::trim(entry) + "': the exact displacement is not finite: " + where + ".";
+                return {};
+              }
+          }
         items.push_back(std::move(it));
       }
     return items;
@@ -125,7 +170,8 @@ namespace shard::output
 
   void
   Quantities::prepare(const mesh::Discretization &discretization, const fe::HexForce &hex,
-                      const bc::BoundaryConditions &conditions, const particles::SpgForce &particles)
+                      const bc::BoundaryConditions &conditions, const particles::SpgForce &particles,
+                      const base::PrmSource &source)
   {
     discretization_ = &discretization;
     hex_            = &hex;
@@ -134,8 +180,8 @@ namespace shard::output
     std::string error;
     items_          = parse(error);
     const auto &X   = discretization.reference_positions();
-    const auto  bad = [](const Item &it, const std::string &why) {
-      throw base::InputError("L - Quantities/quantities: '" + it.name + " = " + it.kind + " ...': " + why);
+    const auto  bad = [&](const Item &it, const std::string &why) {
+      source.fail("L - Quantities/quantities", text_, "'" + it.name + " = " + it.kind + " ...': " + why);
     };
     // The first argument names a body or 'all' (-1).
     const auto body_or_all = [&](Item &it) {
@@ -175,7 +221,12 @@ namespace shard::output
             if (it.component < 0)
               bad(it, "axis must be x, y or z.");
             if (it.args.size() == 3)
-              it.boundary_id = std::stoi(it.args[2]);
+              {
+                it.boundary_id = std::stoi(it.args[2]); // a whole number from 0 to 255 (parse())
+                if (!discretization.boundary_ids(it.body).count(static_cast<unsigned int>(it.boundary_id)))
+                  bad(it, "body '" + it.args[0] + "' has no faces with boundary id " + it.args[2] +
+                            "; its boundary ids are " + discretization.boundary_ids_text(it.body) + ".");
+              }
             it.nodes = it.args.size() == 3 ? discretization.boundary_nodes(it.body, it.boundary_id) :
                                              discretization.body_nodes(it.body);
           }
@@ -252,6 +303,17 @@ namespace shard::output
               if (it.body < 0 || static_cast<int>(k) == it.body)
                 for (const auto j : discretization.body_nodes(k))
                   it.nodes.push_back(j);
+            if (it.kind == "l2_error")
+              {
+                // The exact solution must be finite at every node it is compared at, at t = 0.
+                std::vector<Point<3>> points;
+                for (const auto j : it.nodes)
+                  points.emplace_back(X.local_element(j), X.local_element(j + 1), X.local_element(j + 2));
+                const auto local = base::non_finite_at(*it.exact, points, 0.);
+                for (const auto &where : Utilities::MPI::all_gather(discretization.communicator(), local))
+                  if (!where.empty())
+                    bad(it, "the exact displacement is not finite: " + where + ".");
+              }
           }
         else // stress, velocity at a reference point
           {

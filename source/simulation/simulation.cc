@@ -84,6 +84,20 @@ namespace shard
     }
   } // namespace
 
+  namespace
+  {
+    /// The first @p bytes bytes of the file @p path (fewer if it is shorter; "" if absent).
+    std::string
+    file_head(const std::string &path, const unsigned long long bytes)
+    {
+      std::ifstream in(path, std::ios::binary);
+      std::string   data(bytes, '\0');
+      in.read(data.data(), static_cast<std::streamsize>(bytes));
+      data.resize(in ? bytes : static_cast<std::size_t>(std::max<std::streamsize>(in.gcount(), 0)));
+      return data;
+    }
+  } // namespace
+
   Simulation::Simulation(MPI_Comm comm)
     : comm_(comm)
     , discretization_(comm)
@@ -173,7 +187,7 @@ namespace shard
     bonds_.prepare(particles_, spg_, source_);
     conditions_.prepare(discretization_, source_);
     output_.prepare(discretization_, hex_, spg_);
-    quantities_.prepare(discretization_, hex_, conditions_, spg_);
+    quantities_.prepare(discretization_, hex_, conditions_, spg_, source_);
     fragments_.prepare(discretization_, hex_, particles_);
 
     for (auto *vec : {&d_, &v_, &v_now_, &f_, &f_ext_, &mass_, &d_phys_})
@@ -183,21 +197,45 @@ namespace shard
     mass_.compress(VectorOperation::add);
     mass_.update_ghost_values();
     contact_.prepare(discretization_, materials_, particles_, conversion_.converted_cells(), mass_, source_);
+    {
+      // The energy scale M c^2 of the model (total mass, fastest initial wave speed): a floor of
+      // the energy error's reference, so that round-off in a model at rest is not reported as an
+      // error of 1 (the reference is then round-off too).
+      double wave_speed = 0;
+      for (const auto &b : discretization_.bodies())
+        if (const double c = materials_.get(b.material).initial_wave_speed(); std::isfinite(c))
+          wave_speed = std::max(wave_speed, c);
+      double mass = 0;
+      for (unsigned int i = 0; i < mass_.locally_owned_size(); i += 3)
+        mass += mass_.local_element(i);
+      energy_floor_ = 1e-14 * Utilities::MPI::sum(mass, comm_) * wave_speed * wave_speed;
+    }
 
     // Initial velocity of each body at its nodes.
     const auto &X = discretization_.reference_positions();
+    std::string non_finite; // "body\nwhere" of the first node with a non-finite initial velocity
     for (unsigned int k = 0; k < discretization_.bodies().size(); ++k)
       {
         const auto     velocity = base::parse_vector_function(discretization_.bodies()[k].initial_velocity, false);
         Vector<double> value(3);
         for (const unsigned int j : discretization_.body_nodes(k))
           {
-            velocity->vector_value(Point<3>(X.local_element(j), X.local_element(j + 1), X.local_element(j + 2)),
-                                  value);
+            const Point<3> x(X.local_element(j), X.local_element(j + 1), X.local_element(j + 2));
+            velocity->vector_value(x, value);
             for (unsigned int i = 0; i < 3; ++i)
               v_.local_element(j + i) = value[i];
+            if (non_finite.empty() && !(std::isfinite(value[0]) && std::isfinite(value[1]) && std::isfinite(value[2])))
+              non_finite = discretization_.bodies()[k].name + "\n" + base::non_finite_at(*velocity, {x}, 0.);
           }
       }
+    for (const auto &m : Utilities::MPI::all_gather(comm_, non_finite))
+      if (!m.empty())
+        {
+          const auto name = m.substr(0, m.find('\n'));
+          const auto body = discretization_.body_index(name);
+          source_.fail("B - Mesh/" + name + "/initial velocity", discretization_.bodies()[body].initial_velocity,
+                       "is not finite: " + m.substr(m.find('\n') + 1) + ".");
+        }
     measure_partition();
     if (checkpoint_.restarting())
       restore_state();
@@ -230,29 +268,9 @@ namespace shard
     phase_cpu_time.fill(0.);
 
     const bool restarted = step_ > 0;
-    if (rank == 0 && restarted)
-      {
-        // Rows up to the checkpoint are kept (cut back in restore_state()); the run appends.
-        history_.open(output_.directory() + "/history.csv", std::ios::app);
-      }
     if (rank == 0 && !restarted)
-      {
-        std::cerr << "shard: " << Utilities::MPI::n_mpi_processes(comm_) << " MPI rank(s) x " << base::n_threads()
-                  << " thread(s) per rank\n";
-        history_.open(output_.directory() + "/history.csv");
-        history_ << "time,step,dt,kinetic_energy,internal_energy,hourglass_energy,external_work,boundary_work,"
-                    "filter_work,conversion_energy,bond_energy,energy_error,momentum_x,momentum_y,momentum_z,"
-                    "converted_elements,broken_bonds,free_particles,contact_energy,friction_energy,contact_wall_force";
-        for (const auto &name : quantities_.names())
-          history_ << "," << name;
-        history_ << "\n";
-      }
-    if (rank == 0)
-      {
-        std::ofstream used(output_.directory() + "/parameters.prm");
-        prm_.print_parameters(used, ParameterHandler::ShortPRM | ParameterHandler::KeepDeclarationOrder);
-        materials_.write_resolved_parameters(output_.directory() + "/generated_parameters.prm");
-      }
+      std::cerr << "shard: " << Utilities::MPI::n_mpi_processes(comm_) << " MPI rank(s) x " << base::n_threads()
+                << " thread(s) per rank\n";
 
     if (rank == 0 && rank_elements_.size() > 1 && particles_.active())
       {
@@ -269,7 +287,8 @@ namespace shard
       }
 
     // Initial state: kinetic energy of the input, then the kinematic conditions at t = 0
-    // (a restart has it from the checkpoint).
+    // (a restart has it from the checkpoint). Nothing is written before step 0 has passed its
+    // checks: a run that stops there leaves an earlier run's results in the directory untouched.
     integrator_.rigid_bodies().prepare(discretization_, materials_, mass_);
     if (!restarted)
       {
@@ -293,7 +312,43 @@ namespace shard
         integrator_.kick(0., 0., dt_next_, f_, f_ext_, mass_, d_, conditions_, v_, v_now_, balance_);
         d_.update_ghost_values();
         v_now_.update_ghost_values();
-        record();
+        try
+          {
+            record(); // the row waits in pending_rows_ until history.csv is opened below
+          }
+        catch (const fe::Instability &e)
+          {
+            return {"unstable", e.what(), 3, false};
+          }
+      }
+
+    // From here the run owns its output directory.
+    output_.create_directory();
+    if (rank == 0)
+      {
+        if (restarted)
+          {
+            // Rows up to the checkpoint are kept (cut back in restore_state()); the run appends.
+            history_.open(output_.directory() + "/history.csv", std::ios::app);
+          }
+        else
+          {
+            history_.open(output_.directory() + "/history.csv");
+            history_ << "time,step,dt,kinetic_energy,internal_energy,hourglass_energy,external_work,boundary_work,"
+                        "filter_work,conversion_energy,bond_energy,energy_error,momentum_x,momentum_y,momentum_z,"
+                        "converted_elements,broken_bonds,free_particles,contact_energy,friction_energy,"
+                        "contact_wall_force";
+            for (const auto &name : quantities_.names())
+              history_ << "," << name;
+            history_ << "\n" << pending_rows_;
+            pending_rows_.clear();
+          }
+        std::ofstream used(output_.directory() + "/parameters.prm");
+        prm_.print_parameters(used, ParameterHandler::ShortPRM | ParameterHandler::KeepDeclarationOrder);
+        materials_.write_resolved_parameters(output_.directory() + "/generated_parameters.prm");
+      }
+    if (!restarted)
+      {
         output_.write(0., physical_displacement(), v_now_);
         write_fragments();
         next_output_ = output_.interval();
@@ -304,7 +359,11 @@ namespace shard
     const double loop_start_time = t_;
     base::ProgressEstimate pace; // ETA from the pace of the last progress lines
     const double end             = integrator_.end_time();
-    bool         stop            = false;
+    // A restart from the checkpoint of the last step (or past a smaller end): no step is left,
+    // and the run ends where the straight one did.
+    bool stop = restarted && (t_ >= end * (1 - 1e-12) || (integrator_.max_steps() > 0 && step_ >= integrator_.max_steps()));
+    if (stop && integrator_.max_steps() > 0 && step_ >= integrator_.max_steps() && t_ < end * (1 - 1e-12))
+      result.status = "max steps reached";
     try
       {
         while (!stop)
@@ -405,7 +464,8 @@ namespace shard
                   for (const auto &m : Utilities::MPI::all_gather(comm_, failure))
                     if (!m.empty())
                       all += (all.empty() ? "" : "; ") + m;
-                  throw fe::Instability(all);
+                  // A load that became non-finite is the likely cause: name it.
+                  throw fe::Instability(all + non_finite_source());
                 }
             }
             // A collapsing step: stopped with the place of the smallest step (collective; every
@@ -588,7 +648,7 @@ namespace shard
     const double bond = g[9];
     const double reference = std::max(initial_energy_ + std::abs(external) + std::abs(boundary) + std::abs(filter) +
                                         std::abs(conversion_energy_) + std::abs(bond),
-                                      kinetic);
+                                      std::max(kinetic, energy_floor_));
     energy_error_ = reference > 0 ? (kinetic + internal - initial_energy_ - external - boundary - filter -
                                      conversion_energy_ - bond) /
                                       reference :
@@ -610,20 +670,25 @@ namespace shard
 
     if (Utilities::MPI::this_mpi_process(comm_) == 0)
       {
-        char row[1024];
+        std::string line;
+        char        row[1024];
         std::snprintf(row, sizeof(row),
                       "%.16e,%u,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%llu,"
                       "%llu,%llu,%.16e,%.16e,%.16e",
                       t_, step_, dt_next_, kinetic, internal, g[2], external, boundary, filter, conversion_energy_,
                       bond, energy_error_, g[5], g[6], g[7], conversion_.n_converted(), bonds_.n_broken(),
                       bonds_.n_free(), g[10], g[11], contact_.wall_force());
-        history_ << row;
+        line = row;
         for (const double x : q)
           {
             std::snprintf(row, sizeof(row), ",%.16e", x);
-            history_ << row;
+            line += row;
           }
-        history_ << "\n";
+        line += "\n";
+        if (history_.is_open())
+          history_ << line;
+        else
+          pending_rows_ += line;
       }
     const auto g6 = [](const double x) {
       std::ostringstream out;
@@ -632,13 +697,38 @@ namespace shard
     };
     if (!std::isfinite(kinetic) || !std::isfinite(internal))
       throw fe::Instability("step " + std::to_string(step_) + ", t = " + g6(t_) + " s: non-finite energy (kinetic " +
-                            g6(kinetic) + " J, internal " + g6(internal) + " J)");
+                            g6(kinetic) + " J, internal " + g6(internal) + " J)" + non_finite_source());
+    // Every other column of the row: a run never ends with a non-finite value in its history.
+    {
+      const std::vector<std::pair<std::string, double>> terms = {
+        {"external_work", external}, {"boundary_work", boundary}, {"filter_work", filter},
+        {"conversion_energy", conversion_energy_}, {"bond_energy", bond}, {"energy_error", energy_error_},
+        {"momentum_x", g[5]}, {"momentum_y", g[6]}, {"momentum_z", g[7]}, {"contact_energy", g[10]},
+        {"friction_energy", g[11]}, {"dt", dt_next_}};
+      for (const auto &[name, value] : terms)
+        if (!std::isfinite(value))
+          throw fe::Instability("step " + std::to_string(step_) + ", t = " + g6(t_) + " s: " + name + " is " +
+                                g6(value) + non_finite_source());
+      for (unsigned int i = 0; i < q.size(); ++i)
+        if (!std::isfinite(q[i]))
+          throw fe::Instability("step " + std::to_string(step_) + ", t = " + g6(t_) + " s: quantity '" +
+                                quantities_.names()[i] + "' (L - Quantities/quantities) is " + g6(q[i]));
+    }
     if (std::abs(energy_error_) > integrator_.energy_error_limit())
       throw fe::Instability("step " + std::to_string(step_) + ", t = " + g6(t_) + " s: energy error " +
                             g6(energy_error_) + " exceeds the limit " + g6(integrator_.energy_error_limit()) +
                             " (kinetic " + g6(kinetic) + " J, internal " + g6(internal) + " J, external work " +
                             g6(external) + " J, boundary work " + g6(boundary) + " J, initial kinetic " +
                             g6(initial_energy_) + " J); " + fastest_node(v_now_).describe());
+  }
+
+  std::string
+  Simulation::non_finite_source() const
+  {
+    for (const auto &m : Utilities::MPI::all_gather(comm_, conditions_.non_finite_report(t_)))
+      if (!m.empty())
+        return "; " + m;
+    return "";
   }
 
   std::string
@@ -884,7 +974,7 @@ namespace shard
       energy[1] += elastic_energy_density(spg_.material(i), spg_.stress(i), spg_.jacobian(i)) * particles_.volume(i);
 
     physical_step_ = ~0u;
-    quantities_.prepare(discretization_, hex_, conditions_, spg_);
+    quantities_.prepare(discretization_, hex_, conditions_, spg_, source_);
     fragments_.prepare(discretization_, hex_, particles_);
     contact_.prepare(discretization_, materials_, particles_, conversion_.converted_cells(), mass_, source_);
     stable_dt_ = std::min(stable_dt_, spg_.current_stable_dt());
@@ -1069,6 +1159,7 @@ namespace shard
       std::array<std::vector<std::pair<double, std::string>>, 2> records;
       unsigned char                                              fragments_started = 0;
       unsigned long long                                         history_bytes = 0, fragments_bytes = 0;
+      std::uint64_t                                              history_hash = 0, fragments_hash = 0;
       std::vector<unsigned int>                                  converted;
       unsigned int                                               n_events = 0, n_rebuilds = 0;
       std::vector<std::pair<unsigned long long, unsigned long long>> bonds_at_prepare, bonds;
@@ -1100,7 +1191,8 @@ namespace shard
       io(g.reference_energy), io(g.initial_energy), io(g.energy_error), io(g.max_energy_error);
       io(g.first_stable_dt), io(g.initial_max_speed), io(g.next_output), io(g.held_dt);
       io(g.last_fragments_time), io(g.q_final), io(g.q_min), io(g.q_max), io(g.records);
-      io(g.fragments_started), io(g.history_bytes), io(g.fragments_bytes), io(g.converted), io(g.n_events);
+      io(g.fragments_started), io(g.history_bytes), io(g.fragments_bytes), io(g.history_hash);
+      io(g.fragments_hash), io(g.converted), io(g.n_events);
       io(g.n_rebuilds), io(g.bonds_at_prepare), io(g.bonds), io(g.free_at_prepare), io(g.free);
       io(g.n_broken), io(g.n_free);
     }
@@ -1196,6 +1288,9 @@ namespace shard
         const std::string fragments = output_.directory() + "/fragments.csv";
         g.history_bytes             = std::filesystem::file_size(output_.directory() + "/history.csv");
         g.fragments_bytes = std::filesystem::exists(fragments) ? std::filesystem::file_size(fragments) : 0;
+        // The content, so that a restart continues these very tables (not only as long ones).
+        g.history_hash   = base::fnv1a(file_head(output_.directory() + "/history.csv", g.history_bytes));
+        g.fragments_hash = base::fnv1a(file_head(fragments, g.fragments_bytes));
       }
     // Each rank knows the converted cells it holds; its owned ones are written (the union over
     // the ranks is the converted set).
@@ -1512,6 +1607,7 @@ namespace shard
         output_.restore_records(g.records);
         fragments_started_ = g.fragments_started;
         history_bytes_ = g.history_bytes, fragments_bytes_ = g.fragments_bytes;
+        history_hash_ = g.history_hash, fragments_hash_ = g.fragments_hash;
         if (rank == 0)
           truncate_tables();
       }
@@ -1532,8 +1628,8 @@ namespace shard
   void
   Simulation::truncate_tables() const
   {
-    for (const auto &[name, bytes] : {std::make_pair(std::string("history.csv"), history_bytes_),
-                                      std::make_pair(std::string("fragments.csv"), fragments_bytes_)})
+    for (const auto &[name, bytes, hash] : {std::make_tuple(std::string("history.csv"), history_bytes_, history_hash_),
+                                            std::make_tuple(std::string("fragments.csv"), fragments_bytes_, fragments_hash_)})
       {
         const std::string path = output_.directory() + "/" + name;
         if (!std::filesystem::exists(path))
@@ -1547,6 +1643,10 @@ namespace shard
         if (std::filesystem::file_size(path) < bytes)
           throw base::InputError("N - Checkpoint/restart from: " + path + " is shorter than at the checkpoint (" +
                                  std::to_string(bytes) + " bytes); it does not belong to this run.");
+        if (base::fnv1a(file_head(path, bytes)) != hash)
+          throw base::InputError("N - Checkpoint/restart from: the first " + std::to_string(bytes) + " bytes of " + path +
+                                 " differ from those at the checkpoint (FNV-1a hash); it was changed since, or "
+                                 "belongs to another run.");
         std::filesystem::resize_file(path, bytes);
       }
   }

@@ -18,6 +18,19 @@
 
 namespace shard::base
 {
+  /// The 64-bit FNV-1a hash of @p data (checkpoint files and the tables they continue).
+  inline std::uint64_t
+  fnv1a(const std::string &data)
+  {
+    std::uint64_t h = 14695981039346656037ull;
+    for (const unsigned char c : data)
+      {
+        h ^= c;
+        h *= 1099511628211ull;
+      }
+    return h;
+  }
+
   /**
    * @brief Appends values to a byte string. A vector is its length (64 bit) followed by its
    * elements; a tag (a short string) before each section lets the reader detect a file that

@@ -10,6 +10,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace shard::base
 {
@@ -18,11 +19,19 @@ namespace shard::base
    * (and t when @p time_dependent). The constants pi and e are defined.
    *
    * muparser reports syntax errors only when first evaluated, so the function is evaluated
-   * once here.
-   * @throws std::invalid_argument with the parser's reason for malformed text.
+   * once here (with muparser's own report to std::cerr silenced).
+   * @throws std::invalid_argument with the parser's reason for malformed text, in one line.
    */
   std::unique_ptr<dealii::FunctionParser<3>>
   parse_vector_function(const std::string &text, bool time_dependent);
+
+  /**
+   * @brief Evaluates @p f at every one of @p points at time @p t; returns where a component is
+   * first not finite ("component 1 is inf at (x, y, z) m, t = 0 s"), or "" when all are finite.
+   * The function's time is restored afterwards.
+   */
+  std::string
+  non_finite_at(dealii::Function<3> &f, const std::vector<dealii::Point<3>> &points, double t);
 
   /// True if @p text uses any of the variables x, y, z.
   bool

@@ -30,6 +30,16 @@ namespace shard::base
   };
 
   /**
+   * @brief An error in the command line itself (a malformed `--set`): `shard` exits with 2,
+   * as for any other command-line error, where an InputError exits with 1.
+   */
+  class CommandLineError : public InputError
+  {
+  public:
+    using InputError::InputError;
+  };
+
+  /**
    * @brief The text of one .prm input and the command-line overrides, with the line of each key.
    *
    * The file is scanned once for `subsection`, `set` and `end` so that checks made after
@@ -46,10 +56,13 @@ namespace shard::base
      * @brief Reads @p filename. Throws InputError if the file cannot be read.
      */
     explicit PrmSource(const std::string &filename);
+    // (A directory is refused as well: it reads as an empty file on Linux.)
 
     /**
      * @brief Adds an override of the form `Section/Sub/key=value` (from `--set`).
-     * Throws InputError if the form is wrong.
+     * Throws CommandLineError if the form is wrong: no '=', no section, an empty section or
+     * key name, a control character (a newline would add statements to the scene) or a
+     * trailing backslash (a continuation line) in it.
      */
     void
     add_override(const std::string &assignment);
@@ -150,16 +163,34 @@ namespace shard::base
   std::vector<double>
   parse_numbers(const std::string &text);
 
-  /// Escapes quotes, backslashes and newlines of @p text for a JSON string.
+  /**
+   * @brief Escapes @p text for a JSON string: quotes, backslashes and every control character
+   * (as `\n`, `\t` or `\u00XX`); bytes that are not valid UTF-8 become U+FFFD, so the result
+   * is always a valid JSON string body.
+   */
   std::string
   json_escape(const std::string &text);
+
+  /**
+   * @brief @p text cut to @p max_length characters (then "...") with every byte outside
+   * printable ASCII shown as `\xHH`: safe to print in a one-line message.
+   */
+  std::string
+  printable(const std::string &text, std::size_t max_length);
+
+  /**
+   * @brief The reason of @p e in one printable line: for a deal.II exception the text after
+   * "Additional information:" without the stack trace, for others what(); cut to 300 characters.
+   */
+  std::string
+  exception_reason(const std::exception &e);
 
   /// Writes @p content to @p path through a temporary file and a rename (atomic on POSIX), so
   /// that a reader never sees a half-written file. Throws std::runtime_error if it cannot write.
   void
   write_file_atomically(const std::string &path, const std::string &content);
 
-  /// Parses "a, b, c" into three doubles; throws std::invalid_argument otherwise.
+  /// Parses "a, b, c" into three finite doubles; throws std::invalid_argument otherwise.
   std::array<double, 3>
   parse_point(const std::string &text);
 

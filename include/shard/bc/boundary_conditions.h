@@ -77,8 +77,11 @@ namespace shard::bc
 
     /**
      * @brief Builds node and face lists, parses functions and evaluates the blast parameters of
-     * every loaded face. A blast face outside the Kingery-Bulmash range of scaled distance throws
-     * InputError naming the key `charge position` in @p source. @note Collective.
+     * every loaded face. Throws InputError naming the key in @p source for: a blast face outside
+     * the Kingery-Bulmash range of scaled distance (`charge position`), a boundary id the body
+     * does not have, two kinematic conditions (fixed, velocity) on one component of the same faces,
+     * and a velocity or traction function that is not finite at one of its nodes at t = 0.
+     * @note Collective.
      */
     void
     prepare(const mesh::Discretization &discretization, const base::PrmSource &source = base::PrmSource());
@@ -107,6 +110,14 @@ namespace shard::bc
      */
     std::vector<std::pair<std::string, int>>
     faces() const;
+
+    /**
+     * @brief Diagnostic of a run whose energy became non-finite: the first velocity or traction
+     * condition whose function is not finite at one of this rank's nodes at time @p t, with the
+     * point ("" if none). Not collective.
+     */
+    std::string
+    non_finite_report(double t) const;
 
     /// Adds traction and blast forces at time @p t into the owned entries of @p f.
     void
@@ -174,6 +185,10 @@ namespace shard::bc
 
     void
     add_forces(const Active &a, double t, mesh::Vector &f) const;
+
+    /// Reference positions of the owned nodes a velocity or traction condition @p a acts on.
+    std::vector<dealii::Point<3>>
+    reference_points(const Active &a) const;
 
     /// Calls visit(node, component, force) for each nodal force of traction or blast condition
     /// @p a at time @p t (node: first local DOF of an owned node; N). One loop serves the

@@ -17,6 +17,7 @@
 #include <array>
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -245,6 +246,17 @@ namespace shard::mesh
     std::vector<unsigned int>
     body_nodes(unsigned int body) const;
 
+    /// The boundary ids on the faces of @p body (the same on every rank; after prepare()).
+    const std::set<unsigned int> &
+    boundary_ids(const unsigned int body) const
+    {
+      return body_boundary_ids_.at(body);
+    }
+
+    /// "0, 1, 2" for the boundary ids of @p body, for messages.
+    std::string
+    boundary_ids_text(unsigned int body) const;
+
     /**
      * @brief Adds @p extra (global DOF indices, owned ones are ignored) to the ghost set and
      * rebuilds the partitioner and the reference positions. Local indices of ghosts change:
@@ -264,6 +276,8 @@ namespace shard::mesh
     std::vector<std::string>                                body_names_ = {"body"};
     std::string                                             body_names_text_ = "body";
     double                                                  particle_weight_ = default_particle_weight;
+    int                                                     max_cells_       = 4000000;
+    std::vector<std::set<unsigned int>>                     body_boundary_ids_;
     std::vector<BodyParameters>                             bodies_;
     std::map<std::string, std::unique_ptr<BodyParameters>> declared_;
     dealii::parallel::distributed::Triangulation<3>         triangulation_;

@@ -68,10 +68,14 @@ namespace shard::output
       return progress_interval_;
     }
 
-    /// Creates the output directory. @note Collective.
+    /// Binds the model and checks that the output directory can be created. @note Collective.
     void
     prepare(const mesh::Discretization &discretization, const fe::HexForce &hex,
             const particles::SpgForce &particles);
+
+    /// Creates the output directory: when the run starts, after step 0 passed. @note Collective.
+    void
+    create_directory() const;
 
     /**
      * @brief Writes the fields at @p time: the mesh series solution.pvd and, with particles,

@@ -58,10 +58,15 @@ namespace shard::output
     void
     check_parameters(const base::PrmSource &source) const override;
 
-    /// Resolves bodies, conditions and points. @note Collective.
+    /**
+     * @brief Resolves bodies, conditions and points. Throws InputError located through @p source
+     * for a body, condition or boundary id that does not exist and for an exact solution
+     * (l2_error) that is not finite at one of its nodes at t = 0. @note Collective.
+     */
     void
     prepare(const mesh::Discretization &discretization, const fe::HexForce &hex,
-            const bc::BoundaryConditions &conditions, const particles::SpgForce &particles);
+            const bc::BoundaryConditions &conditions, const particles::SpgForce &particles,
+            const base::PrmSource &source = base::PrmSource());
 
     /// Column names.
     std::vector<std::string>

@@ -23,6 +23,7 @@
 #include <shard/time/central_difference.h>
 
 #include <array>
+#include <cstdint>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -38,6 +39,8 @@ namespace shard
     std::string message;
     /// Exit code for the program: 0 completed, 3 unstable.
     int exit_code = 0;
+    /// False when the run stopped at step 0, before it wrote anything into its output directory.
+    bool wrote_output = true;
   };
 
   /**
@@ -134,6 +137,7 @@ namespace shard
     /// Work space of the bond tests (normalized failure value and critical stretch per particle).
     mesh::Vector       bond_values_;
     double             reference_energy_ = 0, initial_energy_ = 0;
+    double             energy_floor_ = 0; // 1e-14 M c^2: the smallest reference of the energy error
     double             t_ = 0, dt_ = 0, dt_next_ = 0, stable_dt_ = 0;
     unsigned int       step_ = 0;
     unsigned int       physical_step_ = ~0u;
@@ -187,6 +191,11 @@ namespace shard
     truncate_tables() const;
     /// Sizes of history.csv and fragments.csv at the checkpoint read (bytes).
     unsigned long long history_bytes_ = 0, fragments_bytes_ = 0;
+    /// "; <condition>/function = ... is not finite: ..." for a non-finite row, or "". Collective.
+    std::string
+    non_finite_source() const;
+    std::string        pending_rows_; // history rows recorded before history.csv is opened (step 0)
+    std::uint64_t      history_hash_ = 0, fragments_hash_ = 0; // FNV-1a of those bytes at the checkpoint
     /// The fastest node or particle of all ranks, for the energy-limit diagnostic.
     struct FastestNode
     {
