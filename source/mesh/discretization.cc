@@ -544,15 +544,19 @@ namespace shard::mesh
         total_cells += cells;
         if (!(total_cells <= max_cells_))
           {
-            std::ostringstream value, count;
+            std::ostringstream value, count, total;
             if (key == "mesh file")
               value << b.mesh_file;
             else
               value << (key == "refinement" ? static_cast<double>(b.refinement) : b.element_size);
-            count << std::setprecision(3) << cells;
+            if (std::isfinite(cells))
+              count << std::setprecision(cells < 1e15 ? 15 : 3) << cells;
+            else
+              count << "more than 1e308";
+            total << std::setprecision(total_cells < 1e15 ? 15 : 3) << total_cells;
             source.fail("B - Mesh/" + b.name + "/" + key, value.str(),
                         "gives " + count.str() + " cells" +
-                          (total_cells > cells ? " (with the bodies before it, more)" : std::string()) +
+                          (total_cells > cells ? " (the model with the bodies before it: " + total.str() + ")" : std::string()) +
                           ", more than 'B - Mesh/max cells' = " + std::to_string(max_cells_) +
                           " (about 2.7 KB of memory per cell; doc/manual/user_guide.md, Bad input). Use a larger element "
                           "size, or raise 'max cells' if the machine has the memory.");
