@@ -392,6 +392,14 @@ namespace shard::mesh
       nodes(unsigned long long start);
       void
       nodes_2(unsigned long long start);
+      /// The header line `blocks count smallest-tag largest-tag` of a version 4.1 $Nodes or
+      /// $Elements section (@p noun "node" or "element"); sets count_line_ to it.
+      struct Header41
+      {
+        long long n_blocks = 0, n = 0, min_tag = 0, max_tag = 0;
+      };
+      Header41
+      header_41(unsigned long long start, const std::string &section, const std::string &noun);
       void
       nodes_41(unsigned long long start);
       void
@@ -628,25 +636,35 @@ namespace shard::mesh
       end_marker("Nodes", start, str(n) + " node lines (the count is at line " + str(count_line_) + ")");
     }
 
+    Scanner::Header41
+    Scanner::header_41(const unsigned long long start, const std::string &section, const std::string &noun)
+    {
+      const std::string nouns = noun + "s";
+      if (!next_line() || fields_[0][0] == '$')
+        fail(start, "$" + section + " has no header line (blocks " + nouns + " smallest-tag largest-tag)");
+      count_line_ = lines_.number();
+      if (fields_.size() != 4)
+        fail("the $" + section + " header of a version 4.1 file has 4 numbers (blocks, " + nouns +
+             ", smallest tag, largest tag); found " + str(fields_.size()) +
+             (fields_.size() == 1 ? ": is this a version 2.2 file with a 4.1 header?" : ""));
+      const std::string blocks = "number of " + noun + " blocks", count = noun + " count",
+                        smallest = "smallest " + noun + " tag", largest = "largest " + noun + " tag";
+      Header41 h;
+      h.n_blocks = integer(0, blocks.c_str());
+      h.n        = integer(1, count.c_str());
+      h.min_tag  = integer(2, smallest.c_str(), h.n ? 1 : 0);
+      h.max_tag  = integer(3, largest.c_str(), h.n ? 1 : 0);
+      if (h.n > 0 && (h.max_tag < h.min_tag || h.max_tag - h.min_tag + 1 < h.n))
+        fail("the $" + section + " header declares " + str(h.n) + " " + nouns + " with tags " + str(h.min_tag) +
+             ".." + str(h.max_tag) + ": too few tags for distinct " + nouns);
+      return h;
+    }
+
     void
     Scanner::nodes_41(const unsigned long long start)
     {
-      if (!next_line() || fields_[0][0] == '$')
-        fail(start, "$Nodes has no header line (blocks nodes smallest-tag largest-tag)");
-      count_line_ = lines_.number();
-      if (fields_.size() != 4)
-        fail("the $Nodes header of a version 4.1 file has 4 numbers (blocks, nodes, smallest tag, largest tag); "
-             "found " +
-             str(fields_.size()) +
-             (fields_.size() == 1 ? ": is this a version 2.2 file with a 4.1 header?" : ""));
-      const long long n_blocks = integer(0, "number of node blocks");
-      const long long n_nodes  = integer(1, "node count");
-      const long long min_tag  = integer(2, "smallest node tag", n_nodes ? 1 : 0);
-      const long long max_tag  = integer(3, "largest node tag", n_nodes ? 1 : 0);
-      if (n_nodes > 0 && (max_tag < min_tag || max_tag - min_tag + 1 < n_nodes))
-        fail("the $Nodes header declares " + str(n_nodes) + " nodes with tags " + str(min_tag) + ".." +
-             str(max_tag) + ": too few tags for distinct nodes");
-      const unsigned long long header = count_line_;
+      const auto [n_blocks, n_nodes, min_tag, max_tag] = header_41(start, "Nodes", "node");
+      const unsigned long long header                  = count_line_;
       long long                total  = 0;
       for (long long b = 0; b < n_blocks; ++b)
         {
@@ -821,22 +839,8 @@ namespace shard::mesh
     void
     Scanner::elements_41(const unsigned long long start)
     {
-      if (!next_line() || fields_[0][0] == '$')
-        fail(start, "$Elements has no header line (blocks elements smallest-tag largest-tag)");
-      count_line_ = lines_.number();
-      if (fields_.size() != 4)
-        fail("the $Elements header of a version 4.1 file has 4 numbers (blocks, elements, smallest tag, largest "
-             "tag); found " +
-             str(fields_.size()) +
-             (fields_.size() == 1 ? ": is this a version 2.2 file with a 4.1 header?" : ""));
-      const long long n_blocks   = integer(0, "number of element blocks");
-      const long long n_elements = integer(1, "element count");
-      const long long min_tag    = integer(2, "smallest element tag", n_elements ? 1 : 0);
-      const long long max_tag    = integer(3, "largest element tag", n_elements ? 1 : 0);
-      if (n_elements > 0 && (max_tag < min_tag || max_tag - min_tag + 1 < n_elements))
-        fail("the $Elements header declares " + str(n_elements) + " elements with tags " + str(min_tag) + ".." +
-             str(max_tag) + ": too few tags for distinct elements");
-      const unsigned long long header = count_line_;
+      const auto [n_blocks, n_elements, min_tag, max_tag] = header_41(start, "Elements", "element");
+      const unsigned long long header                     = count_line_;
       long long                total  = 0;
       for (long long b = 0; b < n_blocks; ++b)
         {
