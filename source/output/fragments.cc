@@ -1,14 +1,221 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/fe/hex_kernel.h>
 #include <shard/output/fragments.h>
 
 #include <deal.II/base/mpi.h>
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <map>
+#include <numeric>
 
 namespace shard::output
 {
   using namespace dealii;
+
+  void
+  MassMoments::add(const std::array<double, 3> &x, const double m, const double V)
+  {
+    if (!has_reference)
+      {
+        reference     = x;
+        has_reference = true;
+      }
+    const double r[3] = {x[0] - reference[0], x[1] - reference[1], x[2] - reference[2]};
+    mass += m;
+    volume += V;
+    own += m * std::cbrt(V * V) / 12;
+    for (unsigned int c = 0; c < 3; ++c)
+      first[c] += m * r[c];
+    second[0] += m * r[0] * r[0];
+    second[1] += m * r[1] * r[1];
+    second[2] += m * r[2] * r[2];
+    second[3] += m * r[1] * r[2];
+    second[4] += m * r[0] * r[2];
+    second[5] += m * r[0] * r[1];
+  }
+
+  void
+  MassMoments::merge(const MassMoments &o)
+  {
+    if (!o.has_reference)
+      return;
+    if (!has_reference)
+      {
+        *this = o;
+        return;
+      }
+    // x - a = (x - b) + (b - a): P += P_o + M_o s, Q += Q_o + P_o s^T + s P_o^T + M_o s s^T.
+    const double       s[3] = {o.reference[0] - reference[0], o.reference[1] - reference[1],
+                               o.reference[2] - reference[2]};
+    const unsigned int i[6] = {0, 1, 2, 1, 0, 0}, j[6] = {0, 1, 2, 2, 2, 1};
+    for (unsigned int k = 0; k < 6; ++k)
+      second[k] += o.second[k] + o.first[i[k]] * s[j[k]] + s[i[k]] * o.first[j[k]] + o.mass * s[i[k]] * s[j[k]];
+    for (unsigned int c = 0; c < 3; ++c)
+      first[c] += o.first[c] + o.mass * s[c];
+    mass += o.mass;
+    volume += o.volume;
+    own += o.own;
+  }
+
+  void
+  MassMoments::pack(std::vector<double> &out) const
+  {
+    out.push_back(has_reference ? 1. : 0.);
+    out.push_back(mass);
+    out.push_back(volume);
+    out.push_back(own);
+    out.insert(out.end(), reference.begin(), reference.end());
+    out.insert(out.end(), first.begin(), first.end());
+    out.insert(out.end(), second.begin(), second.end());
+  }
+
+  MassMoments
+  MassMoments::unpack(const double *values)
+  {
+    MassMoments m;
+    m.has_reference = values[0] != 0;
+    m.mass          = values[1];
+    m.volume        = values[2];
+    m.own           = values[3];
+    std::copy(values + 4, values + 7, m.reference.begin());
+    std::copy(values + 7, values + 10, m.first.begin());
+    std::copy(values + 10, values + 16, m.second.begin());
+    return m;
+  }
+
+  std::array<double, 6>
+  MassMoments::covariance() const
+  {
+    std::array<double, 6> C{};
+    if (!(mass > 0))
+      return C;
+    const double       c[3] = {first[0] / mass, first[1] / mass, first[2] / mass};
+    const unsigned int i[6] = {0, 1, 2, 1, 0, 0}, j[6] = {0, 1, 2, 2, 2, 1};
+    for (unsigned int k = 0; k < 6; ++k)
+      C[k] = second[k] / mass - c[i[k]] * c[j[k]] + (k < 3 ? own / mass : 0.);
+    return C;
+  }
+
+  FragmentShape
+  fragment_shape(const MassMoments &moments)
+  {
+    FragmentShape shape;
+    shape.volume              = moments.volume;
+    shape.equivalent_diameter = std::cbrt(6 * std::max(moments.volume, 0.) / M_PI);
+    const auto      C         = moments.covariance();
+    Eigen::Matrix3d A;
+    A << C[0], C[5], C[4], C[5], C[1], C[3], C[4], C[3], C[2];
+    // The iterative solver, not computeDirect(): the closed form loses the small eigenvalue of
+    // a long fragment to the round-off of the large one.
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(A, Eigen::EigenvaluesOnly);
+    const auto                                          &l = solver.eigenvalues(); // ascending
+    shape.principal_variances = {{l[2], l[1], l[0]}};
+    if (!(l[2] > 0))
+      shape.aspect_ratio = 1;
+    else if (!(l[0] > 0))
+      shape.aspect_ratio = std::numeric_limits<double>::infinity();
+    else
+      shape.aspect_ratio = std::sqrt(l[2] / l[0]);
+    return shape;
+  }
+
+  void
+  classify(std::vector<Fragment> &fragments, const unsigned int dust_nodes, const std::array<double, 3> &axis)
+  {
+    // The heaviest fragment of each body is the body; the rest is debris. Masses within 1e-12
+    // of each other count as equal and the smaller id wins, so that the two halves of a
+    // symmetric break (equal masses up to the summation order) give the same answer at any
+    // number of ranks.
+    std::map<unsigned int, std::size_t> heaviest;
+    for (std::size_t k = 0; k < fragments.size(); ++k)
+      {
+        const auto &f  = fragments[k];
+        const auto  it = heaviest.find(f.body);
+        if (it == heaviest.end())
+          heaviest[f.body] = k;
+        else
+          {
+            const auto &h = fragments[it->second];
+            const double tie = 1e-12 * std::max(f.mass, h.mass);
+            if (f.mass > h.mass + tie || (std::abs(f.mass - h.mass) <= tie && f.id < h.id))
+              it->second = k;
+          }
+      }
+    for (std::size_t k = 0; k < fragments.size(); ++k)
+      {
+        auto &f  = fragments[k];
+        f.debris = heaviest.at(f.body) != k;
+        f.dust   = f.debris && f.nodes < dust_nodes;
+        const auto  &v = f.velocity;
+        const double along = v[0] * axis[0] + v[1] * axis[1] + v[2] * axis[2];
+        const double across =
+          std::hypot(v[1] * axis[2] - v[2] * axis[1], v[2] * axis[0] - v[0] * axis[2], v[0] * axis[1] - v[1] * axis[0]);
+        f.cone_angle = std::atan2(across, along) * 180 / M_PI;
+      }
+  }
+
+  FragmentSummary
+  summarize(const std::vector<Fragment> &fragments)
+  {
+    FragmentSummary s;
+    s.count = fragments.size();
+    std::vector<double>                    coarse;
+    std::vector<std::pair<double, double>> angles; // (cone angle, mass) of the debris
+    double                                 weighted_angle = 0;
+    for (const auto &f : fragments)
+      {
+        s.mass += f.mass;
+        if (!f.debris)
+          {
+            s.body_mass += f.mass;
+            continue;
+          }
+        ++s.debris_count;
+        s.debris_mass += f.mass;
+        if (f.dust)
+          {
+            ++s.dust_count;
+            s.dust_mass += f.mass;
+          }
+        else
+          {
+            s.coarse_debris_mass += f.mass;
+            coarse.push_back(f.mass);
+          }
+        s.largest_debris_mass  = std::max(s.largest_debris_mass, f.mass);
+        s.fastest_debris_speed = std::max(s.fastest_debris_speed, std::hypot(f.velocity[0], f.velocity[1], f.velocity[2]));
+        weighted_angle += f.mass * f.cone_angle;
+        angles.emplace_back(f.cone_angle, f.mass);
+      }
+    if (s.debris_mass > 0)
+      {
+        s.dust_fraction          = s.dust_mass / s.debris_mass;
+        s.coarse_debris_fraction = s.coarse_debris_mass / s.debris_mass;
+        s.cone_angle_mean        = weighted_angle / s.debris_mass;
+        // The smallest angle whose cone holds at least 90 % of the debris mass (a relative
+        // margin of 1e-12 so that round-off in the running sum does not pass the next angle).
+        std::sort(angles.begin(), angles.end());
+        double within = 0;
+        for (const auto &[angle, m] : angles)
+          {
+            within += m;
+            s.cone_angle_90 = angle;
+            if (within >= 0.9 * s.debris_mass * (1 - 1e-12))
+              break;
+          }
+      }
+    if (!coarse.empty())
+      {
+        std::sort(coarse.begin(), coarse.end());
+        const std::size_t n = coarse.size();
+        s.median_coarse_debris_mass = n % 2 ? coarse[n / 2] : 0.5 * (coarse[n / 2 - 1] + coarse[n / 2]);
+      }
+    return s;
+  }
 
   void
   Fragments::prepare(const mesh::Discretization &discretization, const fe::HexForce &hex,
@@ -63,15 +270,35 @@ namespace shard::output
       members_[next[component[k]]++] = 3 * k;
     // Fragment ids: the coarse-mesh vertex index, the same at any number of ranks (every cell
     // is a coarse cell, and the coarse mesh is the same on every rank), unlike DoF numbers.
+    // Body and lumped volume (V_e / 8 of every cell at the node, converted or not, as the
+    // lumped mass: HexForce::add_lumped_mass) of every owned node.
     node_id_.assign(pt.locally_owned_size() / 3, 0);
+    body_.assign(pt.locally_owned_size() / 3, 0);
+    mesh::Vector volume;
+    discretization.initialize_vector(volume);
     for (const auto &cell : discretization.dof_handler().active_cell_iterators())
       if (cell->is_locally_owned())
-        for (const unsigned int v : cell->vertex_indices())
-          {
-            const auto g = cell->vertex_dof_index(v, 0);
-            if (pt.in_local_range(g))
-              node_id_[pt.global_to_local(g) / 3] = cell->vertex_index(v);
-          }
+        {
+          double x[8][3], B[8][3];
+          for (unsigned int a = 0; a < 8; ++a)
+            for (unsigned int i = 0; i < 3; ++i)
+              x[a][i] = cell->vertex(a)[i];
+          const double ve = fe::hex_volume_gradient(x, B);
+          for (const unsigned int v : cell->vertex_indices())
+            {
+              const auto g = cell->vertex_dof_index(v, 0);
+              volume.local_element(pt.global_to_local(g)) += ve / 8;
+              if (pt.in_local_range(g))
+                {
+                  node_id_[pt.global_to_local(g) / 3] = cell->vertex_index(v);
+                  body_[pt.global_to_local(g) / 3]    = cell->material_id();
+                }
+            }
+        }
+    volume.compress(VectorOperation::add);
+    volume_.assign(pt.locally_owned_size() / 3, 0.);
+    for (unsigned int j = 0; j < pt.locally_owned_size(); j += 3)
+      volume_[j / 3] = volume.local_element(j);
     particle_.assign(pt.locally_owned_size() / 3, 0);
     for (unsigned int i = 0; i < particles.n_owned(); ++i)
       particle_[particles.local_dof(i) / 3] = 1;
@@ -108,41 +335,59 @@ namespace shard::output
         changed = Utilities::MPI::logical_or(mine, comm);
       }
 
-    // Sums per label on this rank, then over ranks (rank order), sorted by label.
+    // Sums per label on this rank, then over ranks (rank order), sorted by label: nodes,
+    // particles, m, m x (3), m v (3), ke; the body (smallest index); the mass moments.
     const auto &X = discretization_->reference_positions();
-    std::map<unsigned long long, std::array<double, 10>> local; // nodes, particles, m, m x (3), m v (3), ke
+    struct Sums
+    {
+      std::array<double, 10> s{};
+      double                 body = std::numeric_limits<double>::max();
+      MassMoments            moments;
+    };
+    constexpr unsigned int             record = 1 + 10 + 1 + MassMoments::n_values; // id first
+    std::map<unsigned long long, Sums> local;
     for (unsigned int j = 0; j < n; j += 3)
       {
-        auto &s = local[static_cast<unsigned long long>(label.local_element(j))];
+        auto &sums = local[static_cast<unsigned long long>(label.local_element(j))];
+        auto &s    = sums.s;
         s[0] += 1;
         s[1] += particle_[j / 3];
         const double m = mass.local_element(j);
         s[2] += m;
+        std::array<double, 3> x;
         for (unsigned int c = 0; c < 3; ++c)
           {
-            s[3 + c] += m * (X.local_element(j + c) + d.local_element(j + c));
+            x[c] = X.local_element(j + c) + d.local_element(j + c);
+            s[3 + c] += m * x[c];
             s[6 + c] += m * v.local_element(j + c);
             s[9] += 0.5 * m * v.local_element(j + c) * v.local_element(j + c);
           }
+        sums.body = std::min(sums.body, static_cast<double>(body_[j / 3]));
+        sums.moments.add(x, m, volume_[j / 3]);
       }
     std::vector<double> flat;
-    for (const auto &[id, s] : local)
+    for (const auto &[id, sums] : local)
       {
         flat.push_back(static_cast<double>(id));
-        flat.insert(flat.end(), s.begin(), s.end());
+        flat.insert(flat.end(), sums.s.begin(), sums.s.end());
+        flat.push_back(sums.body);
+        sums.moments.pack(flat);
       }
-    std::map<unsigned long long, std::array<double, 10>> total;
+    std::map<unsigned long long, Sums> total;
     for (const auto &part : Utilities::MPI::all_gather(comm, flat))
-      for (std::size_t k = 0; k < part.size(); k += 11)
+      for (std::size_t k = 0; k < part.size(); k += record)
         {
-          auto &s = total[static_cast<unsigned long long>(part[k])];
+          auto &sums = total[static_cast<unsigned long long>(part[k])];
           for (unsigned int c = 0; c < 10; ++c)
-            s[c] += part[k + 1 + c];
+            sums.s[c] += part[k + 1 + c];
+          sums.body = std::min(sums.body, part[k + 11]);
+          sums.moments.merge(MassMoments::unpack(&part[k + 12]));
         }
     std::vector<Fragment> out;
-    for (const auto &[id, s] : total)
+    for (const auto &[id, sums] : total)
       {
-        Fragment f;
+        const auto &s = sums.s;
+        Fragment    f;
         f.id        = id;
         f.nodes     = static_cast<unsigned long long>(s[0]);
         f.particles = static_cast<unsigned long long>(s[1]);
@@ -152,7 +397,12 @@ namespace shard::output
             f.centre[c]   = s[2] > 0 ? s[3 + c] / s[2] : 0.;
             f.velocity[c] = s[2] > 0 ? s[6 + c] / s[2] : 0.;
           }
-        f.kinetic_energy = s[9];
+        f.kinetic_energy          = s[9];
+        f.body                    = static_cast<unsigned int>(sums.body);
+        const auto shape          = fragment_shape(sums.moments);
+        f.volume                  = shape.volume;
+        f.equivalent_diameter     = shape.equivalent_diameter;
+        f.aspect_ratio            = shape.aspect_ratio;
         out.push_back(f);
       }
     return out;
