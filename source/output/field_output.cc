@@ -6,6 +6,7 @@
 #include <deal.II/fe/mapping_q1_eulerian.h>
 #include <deal.II/numerics/data_out.h>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -42,9 +43,19 @@ namespace shard::output
                       "Wall-clock time between progress lines on stderr; 0 disables them. Unit: s. Range: >= 0.",
                       Patterns::Double(0));
     prm.add_parameter("fragment plots", fragment_plots_,
-                      "With particles: at the end write fragments.png (cumulative mass and speed distribution "
-                      "of fragment_statistics.csv) with contrib/utilities/plot_fragments.py (/usr/bin/python3 "
-                      "and matplotlib; a failure only prints a warning).");
+                      "With particles: at the end write fragments.png (cumulative mass, speed and cone-angle "
+                      "distributions of the debris in fragment_statistics.csv, dust apart) with "
+                      "contrib/utilities/plot_fragments.py (/usr/bin/python3 and matplotlib; a failure only "
+                      "prints a warning).");
+    prm.add_parameter("dust particles", dust_particles_,
+                      "With particles: debris fragments (every fragment but the heaviest of its body) of fewer "
+                      "than this many nodes (particles; FE nodes count too) are dust, reported apart in "
+                      "fragment_statistics.csv, summary.json and fragments.png; 1: no dust. Unit: 1. Range: >= 1.",
+                      Patterns::Integer(1));
+    prm.add_parameter("debris axis", debris_axis_,
+                      "With particles: direction 'x, y, z' about which the cone angle of the fragment "
+                      "velocities is measured (the angle between a fragment's velocity and this axis), e.g. "
+                      "the direction of the impact. Unit: 1. Range: finite, length > 0 (normalised).");
     prm.leave_subsection();
     return true;
   }
@@ -54,6 +65,27 @@ namespace shard::output
   {
     if (directory_.empty())
       source.fail("K - Output/directory", "", "must not be empty.");
+    std::array<double, 3> a{};
+    try
+      {
+        a = base::parse_point(debris_axis_);
+      }
+    catch (const std::invalid_argument &e)
+      {
+        source.fail("K - Output/debris axis", debris_axis_, std::string(e.what()) + ".");
+      }
+    if (!(std::hypot(a[0], a[1], a[2]) > 0))
+      source.fail("K - Output/debris axis", debris_axis_, "must have a length > 0.");
+  }
+
+  std::array<double, 3>
+  FieldOutput::debris_axis() const
+  {
+    auto         a = base::parse_point(debris_axis_);
+    const double l = std::hypot(a[0], a[1], a[2]);
+    for (auto &x : a)
+      x /= l;
+    return a;
   }
 
   void

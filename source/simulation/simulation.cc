@@ -562,7 +562,8 @@ namespace shard
       }
     history_.close();
     // Fragment statistics of the last output: by mass, largest first, with the cumulative
-    // mass fraction and the speed (doc/manual/hybrid.md, "Fragments").
+    // mass fraction, the speed, size, shape and the debris classification
+    // (doc/manual/failure.md, "Fragments").
     if (rank == 0 && !last_fragments_.empty())
       {
         auto sorted = last_fragments_;
@@ -572,17 +573,20 @@ namespace shard
         for (const auto &f : sorted)
           total += f.mass;
         std::ofstream out(output_.directory() + "/fragment_statistics.csv");
-        out << "time,rank_by_mass,fragment,nodes,particles,mass,cumulative_mass_fraction,speed,kinetic_energy\n";
+        out << "time,rank_by_mass,fragment,nodes,particles,mass,cumulative_mass_fraction,speed,kinetic_energy,"
+               "body,volume,equivalent_diameter,aspect_ratio,debris,dust,cone_angle\n";
         double cumulative = 0;
-        char   row[512];
+        char   row[512], shape[256];
         for (std::size_t k = 0; k < sorted.size(); ++k)
           {
             const auto &f = sorted[k];
             cumulative += f.mass;
-            std::snprintf(row, sizeof(row), "%.10e,%zu,%llu,%llu,%llu,%.16e,%.16e,%.10e,%.10e\n", last_fragments_time_,
+            std::snprintf(row, sizeof(row), "%.10e,%zu,%llu,%llu,%llu,%.16e,%.16e,%.10e,%.10e,", last_fragments_time_,
                           k + 1, f.id, f.nodes, f.particles, f.mass, cumulative / total,
                           std::hypot(f.velocity[0], f.velocity[1], f.velocity[2]), f.kinetic_energy);
-            out << row;
+            std::snprintf(shape, sizeof(shape), ",%.16e,%.16e,%.16e,%d,%d,%.16e\n", f.volume, f.equivalent_diameter,
+                          f.aspect_ratio, int(f.debris), int(f.dust), f.cone_angle);
+            out << row << discretization_.bodies()[f.body].name << shape;
           }
       }
     if (rank == 0 && !last_fragments_.empty() && output_.fragment_plots())
@@ -1014,6 +1018,7 @@ namespace shard
     fragments_stale_     = false;
     last_fragments_      = fragments_.compute(physical_displacement(), v_now_, mass_);
     last_fragments_time_ = t_;
+    output::classify(last_fragments_, output_.dust_particles(), output_.debris_axis());
     if (Utilities::MPI::this_mpi_process(comm_) != 0)
       return;
     const std::string path  = output_.directory() + "/fragments.csv";
@@ -1082,6 +1087,28 @@ namespace shard
         j << "  \"n_fragments\": " << last_fragments_.size() << ",\n";
         j << "  \"fragment_mass_total\": " << number(total) << ",\n";
         j << "  \"largest_fragment_mass\": " << number(largest) << ",\n";
+        // Debris and dust (doc/manual/failure.md, "Fragments").
+        // (17 digits: the masses add up to the total to round-off.)
+        const auto s      = output::summarize(last_fragments_);
+        const auto axis   = output_.debris_axis();
+        const auto number = [](const double x) {
+          std::ostringstream o;
+          o << std::setprecision(17) << x;
+          return std::isfinite(x) ? o.str() : std::string("null");
+        };
+        j << "  \"fragments\": {\"time\": " << number(last_fragments_time_) << ", \"count\": " << s.count
+          << ", \"mass\": " << number(s.mass) << ", \"dust_particles\": " << output_.dust_particles()
+          << ", \"debris_axis\": [" << number(axis[0]) << ", " << number(axis[1]) << ", " << number(axis[2])
+          << "], \"body_mass\": " << number(s.body_mass) << ", \"debris_count\": " << s.debris_count
+          << ", \"debris_mass\": " << number(s.debris_mass) << ", \"dust_count\": " << s.dust_count
+          << ", \"dust_mass\": " << number(s.dust_mass) << ", \"dust_fraction\": " << number(s.dust_fraction)
+          << ", \"coarse_debris_mass\": " << number(s.coarse_debris_mass)
+          << ", \"coarse_debris_fraction\": " << number(s.coarse_debris_fraction)
+          << ", \"largest_debris_mass\": " << number(s.largest_debris_mass)
+          << ", \"fastest_debris_speed\": " << number(s.fastest_debris_speed)
+          << ", \"median_coarse_debris_mass\": " << number(s.median_coarse_debris_mass)
+          << ", \"debris_cone_angle_mean\": " << number(s.cone_angle_mean)
+          << ", \"debris_cone_angle_90\": " << number(s.cone_angle_90) << "},\n";
       }
     j << "  \"correction_iterations\": " << spg_.correction_solve().iterations << ",\n";
     j << "  \"n_mpi_ranks\": " << Utilities::MPI::n_mpi_processes(comm_) << ",\n";

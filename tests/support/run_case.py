@@ -19,7 +19,14 @@ A case is a directory holding <case>.prm, or a path <case>.prm; beside the .prm 
   <case>.summary     JSON list of checks on summary.json: {"key", "expected", "rel" | "abs"};
                      a key "a/b" looks into object a (run: "results/x"; material-test:
                      "final_state/effective plastic strain"); "expected_key" instead of
-                     "expected" compares with another key of the same summary.json.
+                     "expected" compares with another key of the same summary.json; "sum_of": [keys]
+                     instead of "key" checks the sum of several keys (a mass balance).
+  <case>.fragments   JSON list of checks on fragment_statistics.csv, each
+                       {"name", "value", "expected", "where", "aggregate", "rel" | "abs", "source"}:
+                     "value" and "expected" are Python expressions of a row's columns (numbers; `body`
+                     is text), the math functions and `summary` (summary.json); "where" (default
+                     all rows) selects rows; "aggregate" is each (default: every selected row, at
+                     least one), sum (of value over the selected rows) or count (selected rows).
 
 Options: --command NAME is the shard command (default `run`; `material-test` for a material point
 case, whose history.csv has the same 'time' column and is checked the same way); --output-key PATH
@@ -226,9 +233,16 @@ def check_case(args, outdir, failures):
             summary = json.load(f)
         with open(base + ".summary") as f:
             for c in json.load(f):
-                v = summary
-                for part in c["key"].split("/"):
-                    v = v[part]
+                def lookup(key):
+                    v = summary
+                    for part in key.split("/"):
+                        v = v[part]
+                    return v
+                if "sum_of" in c:
+                    c = dict(c, key=" + ".join(c["sum_of"]))
+                    v = sum(float(lookup(k)) for k in c["sum_of"])
+                else:
+                    v = lookup(c["key"])
                 if "expected_key" in c:
                     # Two results of one run that a conservation law makes equal (e.g. the
                     # fragment masses and the nodal mass).
@@ -244,6 +258,51 @@ def check_case(args, outdir, failures):
                 else:
                     check_value(failures, case, f"summary {c['key']}", float(v), c["expected"],
                                 c.get("abs", 0.0), c.get("rel", 0.0))
+    if os.path.exists(base + ".fragments"):
+        check_fragments(base + ".fragments", outdir, case, failures)
+
+
+def check_fragments(path, outdir, case, failures):
+    """The checks of PATH (<case>.fragments) on fragment_statistics.csv (see the module doc)."""
+    with open(os.path.join(outdir, "fragment_statistics.csv")) as f:
+        rows = [{k: (v if k == "body" else float(v)) for k, v in r.items()} for r in csv.DictReader(f)]
+    summary_path = os.path.join(outdir, "summary.json")
+    summary = json.load(open(summary_path)) if os.path.exists(summary_path) else {}
+    names = {k: getattr(math, k) for k in dir(math) if not k.startswith("_")}
+
+    def evaluate(expression, row):
+        if not isinstance(expression, str):
+            return float(expression)
+        return float(eval(expression, {"__builtins__": {}}, {**names, "summary": summary, **row}))
+
+    with open(path) as f:
+        checks = json.load(f)
+    for c in checks:
+        selected = [r for r in rows if evaluate(c.get("where", "1"), r)]
+        label = f"{c['name']} ({c.get('source', '')})"
+        kind = c.get("aggregate", "each")
+        tol_abs, tol_rel = c.get("abs", 0.0), c.get("rel", 0.0)
+        if kind == "each":
+            if not selected:
+                print(f"FAIL  {case}: fragments {label}: no row where {c.get('where')}")
+                failures.append(f"{case}: fragments {c['name']}: no row selected")
+                continue
+            bad = None
+            for r in selected:
+                value, expected = evaluate(c["value"], r), evaluate(c["expected"], r)
+                if not abs(value - expected) <= tol_abs + tol_rel * abs(expected):
+                    bad = (r, value, expected)
+                    break
+            if bad:
+                r, value, expected = bad
+                check_value(failures, case, f"fragments {label}, fragment {int(r['fragment'])}", value, expected,
+                            tol_abs, tol_rel)
+            else:
+                print(f"ok    {case}: fragments {label}: {len(selected)} rows")
+        else:
+            value = sum(evaluate(c["value"], r) for r in selected) if kind == "sum" else float(len(selected))
+            check_value(failures, case, f"fragments {label} ({kind} over {len(selected)} rows)", value,
+                        evaluate(c["expected"], {}), tol_abs, tol_rel)
 
 
 def compare_histories(a, b, rel, failures, case):

@@ -61,6 +61,17 @@ namespace shard::output
       return fragment_plots_;
     }
 
+    /// Debris fragments of fewer nodes than this are dust (`dust particles`, >= 1).
+    unsigned int
+    dust_particles() const
+    {
+      return dust_particles_;
+    }
+
+    /// Unit vector of `debris axis` (checked by check_parameters()).
+    std::array<double, 3>
+    debris_axis() const;
+
     /// Wall-clock seconds between progress lines.
     double
     progress_interval() const
@@ -117,6 +128,8 @@ namespace shard::output
     double       progress_interval_ = 2.;
     bool         fragment_plots_    = true;
     bool         fields_            = true;
+    unsigned int dust_particles_    = 8;
+    std::string  debris_axis_       = "0, 0, -1";
     bool         declared_          = false;
 
     const mesh::Discretization                *discretization_ = nullptr;
