@@ -800,6 +800,7 @@ namespace shard::contact
     force_old_.swap(force_);
     std::fill(force_.begin(), force_.end(), 0.);
     double     friction_power = 0;
+    double     stored         = 0; // energy in the penalty springs at this configuration
     wall_force_               = 0;
     const auto add            = [&](const unsigned int i, const Vec3 &g, const double w) {
       for (unsigned int c = 0; c < 3; ++c)
@@ -824,6 +825,7 @@ namespace shard::contact
                 if (gap >= 0)
                   continue;
                 const double fn = in.penalty * nodes_[i].bulk * nodes_[i].spacing * (-gap);
+                stored += 0.5 * fn * (-gap);
                 Vec3         fvec{{fn * in.normal[0], fn * in.normal[1], fn * in.normal[2]}};
                 if (in.friction > 0)
                   add_friction(velocity(i), in.normal, fn, in.friction, fvec);
@@ -859,6 +861,7 @@ namespace shard::contact
                 const double k  = in.penalty * std::min(nodes_[i].bulk, nodes_[j].bulk) *
                                  std::min(nodes_[i].spacing, nodes_[j].spacing);
                 const double fn = k * h.overlap;
+                stored += 0.5 * fn * h.overlap;
                 Vec3         fj{{fn * h.normal[0], fn * h.normal[1], fn * h.normal[2]}};
                 if (in.friction > 0)
                   {
@@ -1024,6 +1027,7 @@ namespace shard::contact
                 const double fn    = in.penalty * seg.stiffness * (-h.gap - depth[i]);
                 if (!(fn > 0))
                   continue;
+                stored += 0.5 * fn * (-h.gap - depth[i]);
                 Vec3         fi{{fn * h.normal[0], fn * h.normal[1], fn * h.normal[2]}};
                 if (in.friction > 0)
                   {
@@ -1062,7 +1066,10 @@ namespace shard::contact
     energy_ = energy;
     // Friction dissipation (replicated on every rank, counted on rank 0), mid-step velocities.
     if (Utilities::MPI::this_mpi_process(comm_) == 0)
-      friction_energy_ += friction_power * dt;
+      {
+        friction_energy_ += friction_power * dt;
+        stored_energy_ = stored;
+      }
     result.stable_dt = stable_dt_;
     return result;
   }

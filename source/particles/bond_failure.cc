@@ -63,8 +63,9 @@ namespace shard::particles
         prm.add_parameter("rule", rule_text_,
                           "Which particle values of a bond are compared: 'mean' breaks the bond when the mean of "
                           "the two normalized values q/q_c reaches 1, 'either' when one end reaches its threshold, "
-                          "'both' when both do.",
-                          Patterns::Selection("mean|either|both"));
+                          "'both' when both do, 'tension' when the mean reaches 1 and the bond is longer than in the "
+                          "reference configuration (an opening crack; compressed bonds hold).",
+                          Patterns::Selection("mean|either|both|tension"));
         prm.add_parameter("minimum bonds", minimum_bonds_,
                           "A particle left with fewer intact bonds to other particles becomes a free particle: "
                           "all its bonds break; it keeps mass, momentum and state and interacts only by contact. "
@@ -132,7 +133,10 @@ namespace shard::particles
   BondFailure::prepare(ParticleSet &particles, const SpgForce &spg, const base::PrmSource &source)
   {
     particles.set_broken_condition_limit(condition_limit_);
-    rule_ = rule_text_ == "either" ? BondRule::either : rule_text_ == "both" ? BondRule::both : BondRule::mean;
+    rule_ = rule_text_ == "either" ? BondRule::either :
+            rule_text_ == "both"   ? BondRule::both :
+            rule_text_ == "tension" ? BondRule::tension :
+                                      BondRule::mean;
     const unsigned int n = spg.n_owned();
     criterion_.assign(n, BondCriterion::none);
     threshold_.assign(n, 1.);
@@ -230,7 +234,7 @@ namespace shard::particles
     const auto may_break = [&](const double qi) {
       if (stretch_possible_)
         return true;
-      return rule_ == BondRule::mean   ? qi + largest >= 2. :
+      return rule_ == BondRule::mean || rule_ == BondRule::tension ? qi + largest >= 2. :
              rule_ == BondRule::either ? std::max(qi, largest) >= 1. :
                                          qi >= 1.;
     };
@@ -244,12 +248,13 @@ namespace shard::particles
             if (j == i || !particles.g_entry_intact(e))
               continue;
             const double qi = value_[i], qj = q.local_element(particles.local_dof(j));
-            bool         broken = rule_ == BondRule::mean   ? qi + qj >= 2. :
-                                  rule_ == BondRule::either ? std::max(qi, qj) >= 1. :
-                                                              std::min(qi, qj) >= 1.;
+            bool         broken = rule_ == BondRule::mean || rule_ == BondRule::tension ? qi + qj >= 2. :
+                                  rule_ == BondRule::either                            ? std::max(qi, qj) >= 1. :
+                                                                                         std::min(qi, qj) >= 1.;
             const double si = stretch_[i], sj = q.local_element(particles.local_dof(j) + 1);
             const double s  = si > 0 && sj > 0 ? std::min(si, sj) : std::max(si, sj);
-            if (!broken && s > 0)
+            const bool   need_stretch = (rule_ == BondRule::tension && broken) || (!broken && s > 0);
+            if (need_stretch)
               {
                 const Point3 &Xi = particles.compact_position(i), &Xj = particles.compact_position(j);
                 double        l0 = 0, l = 0;
@@ -260,8 +265,13 @@ namespace shard::particles
                     l0 += r0 * r0;
                     l += r * r;
                   }
-                const double lambda = std::sqrt(l / l0);
-                broken              = lambda > s || lambda < 1. / s;
+                if (broken) // tension rule: the crack must open across the bond
+                  broken = l > l0;
+                if (!broken && s > 0)
+                  {
+                    const double lambda = std::sqrt(l / l0);
+                    broken              = lambda > s || lambda < 1. / s;
+                  }
               }
             if (broken)
               {

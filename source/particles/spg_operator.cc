@@ -895,7 +895,6 @@ namespace shard::particles
 
     // Remove the component of r along the null space of S (fields linear in X), per component:
     // r <- r - p (p^T p)^-1 p^T r with p = (1, X - X_c), X_c a fixed point of each component.
-    std::vector<double> sums(n_components * (16 + 12 + 3), 0.);
     std::vector<Point3> origin(n_components, Point3{{0, 0, 0}});
     {
       std::vector<double> centroid(4 * n_components, 0.);
@@ -915,50 +914,62 @@ namespace shard::particles
       for (unsigned int c = 0; c < 3; ++c)
         pv[c + 1] = position_j[i][c] - origin[component[i]][c];
     };
-    for (unsigned int i = 0; i < n_owned; ++i)
-      {
-        double *s = &sums[31 * component[i]];
-        double  pv[4];
-        basis(i, pv);
-        for (unsigned int a = 0; a < 4; ++a)
-          {
-            for (unsigned int b = 0; b < 4; ++b)
-              s[4 * a + b] += pv[a] * pv[b];
-            for (unsigned int c = 0; c < 3; ++c)
-              s[16 + 3 * a + c] += pv[a] * r[3 * i + c];
-          }
-      }
-    exchange.sum(sums);
-    std::vector<double> fit(12 * n_components, 0.);
-    for (unsigned int b = 0; b < n_components; ++b)
-      {
-        double inv[16];
-        if (!invert_spd4(&sums[31 * b], inv))
-          continue;
-        for (unsigned int a = 0; a < 4; ++a)
-          for (unsigned int c = 0; c < 3; ++c)
-            for (unsigned int k = 0; k < 4; ++k)
-              fit[12 * b + 3 * a + c] += inv[4 * a + k] * sums[31 * b + 16 + 3 * k + c];
-      }
-    double removed = 0;
-    for (unsigned int i = 0; i < n_owned; ++i)
-      {
-        double pv[4];
-        basis(i, pv);
-        for (unsigned int c = 0; c < 3; ++c)
-          {
-            double v = 0;
-            for (unsigned int a = 0; a < 4; ++a)
-              v += pv[a] * fit[12 * component[i] + 3 * a + c];
-            r[3 * i + c] -= v;
-            removed += v * v;
-          }
-      }
+    // The projection onto the range of S, v <- v - p (p^T p)^-1 p^T v per component; returns
+    // the squared norm removed (over all ranks). (p^T p)^-1 depends on the positions only.
+    std::vector<double> inverse(16 * n_components, 0.);
+    std::vector<char>   invertible(n_components, 0);
     {
-      std::vector<double> s(1, removed);
-      exchange.sum(s);
-      removed = s[0];
+      std::vector<double> pp(16 * n_components, 0.);
+      for (unsigned int i = 0; i < n_owned; ++i)
+        {
+          double pv[4];
+          basis(i, pv);
+          for (unsigned int a = 0; a < 4; ++a)
+            for (unsigned int b = 0; b < 4; ++b)
+              pp[16 * component[i] + 4 * a + b] += pv[a] * pv[b];
+        }
+      exchange.sum(pp);
+      for (unsigned int b = 0; b < n_components; ++b)
+        invertible[b] = invert_spd4(&pp[16 * b], &inverse[16 * b]) ? 1 : 0;
     }
+    std::vector<double> moments(12 * n_components), fit(12 * n_components);
+    const auto          project = [&](std::vector<double> &v) {
+      std::fill(moments.begin(), moments.end(), 0.);
+      for (unsigned int i = 0; i < n_owned; ++i)
+        {
+          double pv[4];
+          basis(i, pv);
+          for (unsigned int a = 0; a < 4; ++a)
+            for (unsigned int c = 0; c < 3; ++c)
+              moments[12 * component[i] + 3 * a + c] += pv[a] * v[3 * i + c];
+        }
+      exchange.sum(moments);
+      std::fill(fit.begin(), fit.end(), 0.);
+      for (unsigned int b = 0; b < n_components; ++b)
+        if (invertible[b])
+          for (unsigned int a = 0; a < 4; ++a)
+            for (unsigned int c = 0; c < 3; ++c)
+              for (unsigned int k = 0; k < 4; ++k)
+                fit[12 * b + 3 * a + c] += inverse[16 * b + 4 * a + k] * moments[12 * b + 3 * k + c];
+      double removed = 0;
+      for (unsigned int i = 0; i < n_owned; ++i)
+        {
+          double pv[4];
+          basis(i, pv);
+          for (unsigned int c = 0; c < 3; ++c)
+            {
+              double w = 0;
+              for (unsigned int a = 0; a < 4; ++a)
+                w += pv[a] * fit[12 * component[i] + 3 * a + c];
+              v[3 * i + c] -= w;
+              removed += w * w;
+            }
+        }
+      std::vector<double> total(1, removed);
+      exchange.sum(total);
+      return total[0];
+    };
+    const double removed = project(r);
     out.initial_defect = r_norm;
     out.inconsistency  = r_norm > 0 ? std::sqrt(removed) / r_norm : 0.;
 
@@ -975,7 +986,14 @@ namespace shard::particles
       for (unsigned int k = 0; k < 3 * n_owned; ++k)
         z[k] = diag[k] > 0 ? r[k] / diag[k] : 0.;
       if (coarse)
-        coarse->add(r, z);
+        {
+          coarse->add(r, z);
+          // E is shifted along its singular directions (the fields linear over a component), so
+          // E^-1 amplifies the round-off of Z^T r there by up to 1e8 / max E_kk; those fields are
+          // the null space of S, and left in z they ruin p^T S p (CG broke down on some CPUs).
+          // Projecting z keeps the preconditioner symmetric on the range of S, where r lives.
+          project(z);
+        }
     };
     precondition();
     p = z;

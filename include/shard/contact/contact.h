@@ -120,6 +120,14 @@ namespace shard::contact
       return friction_energy_;
     }
 
+    /// Energy held in the penalty springs at the last evaluation, sum of k delta^2 / 2 over the
+    /// pairs in contact (J, counted on rank 0). The part of energy() that returns on separation.
+    double
+    stored_energy() const
+    {
+      return stored_energy_;
+    }
+
     /// Sum of the normal forces on the rigid walls at the last evaluation (N, every rank).
     double
     wall_force() const
@@ -316,7 +324,7 @@ namespace shard::contact
     unsigned int                                          last_build_ = 0;
     bool                                                  built_      = false;
     unsigned int                                          n_rebuilds_ = 0;
-    double energy_ = 0, friction_energy_ = 0, wall_force_ = 0, stable_dt_ = 1e300;
+    double energy_ = 0, friction_energy_ = 0, stored_energy_ = 0, wall_force_ = 0, stable_dt_ = 1e300;
     double skin_used_ = 0;
 
     void

@@ -45,7 +45,10 @@ namespace shard::particles
     /// Either end reaches its threshold.
     either,
     /// Both ends reach their thresholds.
-    both
+    both,
+    /// The mean reaches 1 and the bond is stretched, |x_J - x_I| > |X_J - X_I|: a crack opens
+    /// across the bond; compressed bonds of crushed material hold.
+    tension
   };
 
   /**

@@ -558,8 +558,10 @@ TEST(SpgStability, CoarseSpaceKeepsTheCorrectionAndCutsIterations)
       EXPECT_TRUE(solve.converged);
       iterations[k] = solve.iterations;
       grad[k]       = correction.corrected_gradients(lambda.data());
-      std::printf("correction solve, coarse size %s: %u iterations, %u coarse functions on %u aggregates\n",
-                  k == 0 ? "0 (Jacobi)" : "3", solve.iterations, solve.coarse_functions, solve.aggregates);
+      std::printf("correction solve, coarse size %s: %u iterations, %u coarse functions on %u aggregates, "
+                  "defect %.3e -> %.3e, inconsistency %.2e\n",
+                  k == 0 ? "0 (Jacobi)" : "3", solve.iterations, solve.coarse_functions, solve.aggregates,
+                  solve.initial_defect, solve.final_defect, solve.inconsistency);
       if (k == 1)
         {
           // 4096 particles in cubes of 3 spacings: 6^3 = 216 aggregates, each with a constant and
