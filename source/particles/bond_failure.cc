@@ -100,6 +100,13 @@ namespace shard::particles
                           "A bond breaks when its stretch |x_J - x_I| / |X_J - X_I| exceeds this value or falls "
                           "below its inverse. 0 switches the stretch criterion off. Unit: 1. Range: 0 or > 1.",
                           Patterns::Double(0));
+        prm.add_parameter("critical opening", st.opening,
+                          "A bond breaks when it has opened by more than this length, |x_J - x_I| - |X_J - X_I| "
+                          "> w_c: the crack across it is fully open (for a softening material, the opening at "
+                          "which its tensile stress is gone, about 5 G_F / f't for concrete). Compressed bonds "
+                          "never break by it, so crushed material stays a continuum. The smaller w_c of the two "
+                          "ends applies. 0 switches it off. Unit: m. Range: >= 0.",
+                          Patterns::Double(0));
         prm.add_parameter("minimum volume ratio", st.volume_ratio,
                           "A particle of this material whose relative volume J = V / V0 falls below this value "
                           "becomes a free particle (crushed: all its bonds break, mass, momentum and state are "
@@ -122,6 +129,8 @@ namespace shard::particles
         if (st.criterion_text != "none" && !(st.threshold > 0))
           source.fail(top + name + "/threshold", std::to_string(st.threshold),
                       "> 0 when 'criterion' is '" + st.criterion_text + "'.");
+        if (!(st.opening >= 0) || !std::isfinite(st.opening))
+          source.fail(top + name + "/critical opening", std::to_string(st.opening), "a finite length >= 0 m (0: off).");
         if (st.stretch != 0 && !(st.stretch > 1))
           source.fail(top + name + "/critical stretch", std::to_string(st.stretch), "0 (off) or > 1.");
         if (!(st.volume_ratio >= 0 && st.volume_ratio < 1))
@@ -141,6 +150,7 @@ namespace shard::particles
     criterion_.assign(n, BondCriterion::none);
     threshold_.assign(n, 1.);
     stretch_.assign(n, 0.);
+    opening_.assign(n, 0.);
     volume_ratio_.assign(n, 0.);
     slot_.assign(n, -1);
     value_.assign(n, 0.);
@@ -148,8 +158,8 @@ namespace shard::particles
     stretch_possible_ = false;
     for (const auto &[name, st] : settings_)
       {
-        any |= st.criterion_text != "none" || st.stretch > 0 || st.volume_ratio > 0;
-        stretch_possible_ |= st.stretch > 0;
+        any |= st.criterion_text != "none" || st.stretch > 0 || st.opening > 0 || st.volume_ratio > 0;
+        stretch_possible_ |= st.stretch > 0 || st.opening > 0;
       }
     active_ = spg.active() && any;
     if (!active_)
@@ -168,6 +178,7 @@ namespace shard::particles
         criterion_[i]           = criterion_of(st.criterion_text);
         threshold_[i]           = st.threshold > 0 ? st.threshold : 1.;
         stretch_[i]             = st.stretch;
+        opening_[i]             = st.opening;
         volume_ratio_[i]        = st.volume_ratio;
         const char *slot        = criterion_[i] == BondCriterion::plastic_strain ? materials::slot::plastic_strain :
                                   criterion_[i] == BondCriterion::scaled_damage  ? "scaled damage" :
@@ -222,6 +233,7 @@ namespace shard::particles
         value_[i] = evaluate(spg, i);
         q.local_element(particles.local_dof(i))     = has_bonds_[i] ? value_[i] : 0.;
         q.local_element(particles.local_dof(i) + 1) = stretch_[i];
+        q.local_element(particles.local_dof(i) + 2) = opening_[i];
       }
     q.update_ghost_values();
 
@@ -253,7 +265,9 @@ namespace shard::particles
                                                                                          std::min(qi, qj) >= 1.;
             const double si = stretch_[i], sj = q.local_element(particles.local_dof(j) + 1);
             const double s  = si > 0 && sj > 0 ? std::min(si, sj) : std::max(si, sj);
-            const bool   need_stretch = (rule_ == BondRule::tension && broken) || (!broken && s > 0);
+            const double wi = opening_[i], wj = q.local_element(particles.local_dof(j) + 2);
+            const double w  = wi > 0 && wj > 0 ? std::min(wi, wj) : std::max(wi, wj);
+            const bool   need_stretch = (rule_ == BondRule::tension && broken) || (!broken && (s > 0 || w > 0));
             if (need_stretch)
               {
                 const Point3 &Xi = particles.compact_position(i), &Xj = particles.compact_position(j);
@@ -272,6 +286,8 @@ namespace shard::particles
                     const double lambda = std::sqrt(l / l0);
                     broken              = lambda > s || lambda < 1. / s;
                   }
+                if (!broken && w > 0)
+                  broken = std::sqrt(l) - std::sqrt(l0) > w;
               }
             if (broken)
               {

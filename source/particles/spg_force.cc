@@ -322,6 +322,8 @@ namespace shard::particles
         p.q      = q_[i];
         p.jacobian = jacobian(i);
         p.volume_factor = volume_factor_[i];
+        std::copy_n(op_.last_residual(i), 3, p.residual.begin());
+        std::copy_n(op_.residual_offset(i), 3, p.residual_offset.begin());
         std::copy(&stress_[6 * i], &stress_[6 * i] + 6, p.stress.begin());
         p.state.assign(state(i), state(i) + groups_[group_of_[i]].n_slots);
         out.emplace(particles_->global_id(i), std::move(p));
@@ -337,6 +339,25 @@ namespace shard::particles
     auto &g = groups_[group_of_[i]];
     std::copy(history, history + g.n_slots, g.state.data() + std::size_t(i - g.begin) * g.n_slots);
     q_[i] = q;
+  }
+
+  void
+  SpgForce::keep_residuals(const mesh::Vector &d, const std::map<unsigned long long, SavedParticle> &saved)
+  {
+    if (!active_ || options_.stabilization != Stabilization::residual)
+      return;
+    evaluated_ = false;
+    gather(d, dk_);
+    std::vector<unsigned int> rows(n_owned());
+    std::vector<double>       target(3 * n_owned(), 0.);
+    for (unsigned int i = 0; i < n_owned(); ++i)
+      {
+        rows[i]       = i;
+        const auto it = saved.find(particles_->global_id(i));
+        if (it != saved.end())
+          std::copy(it->second.residual.begin(), it->second.residual.end(), &target[3 * i]);
+      }
+    op_.rebase_residual(dk_.data(), rows, target.data());
   }
 
   double
@@ -367,6 +388,16 @@ namespace shard::particles
     if (!active_)
       return 0.;
     op_.copy_transposed_values(a_rows, g_rows);
+    // The residual of a rebuilt row goes on from where it was (SpgOperator::rebase_residual()).
+    if (options_.stabilization == Stabilization::residual)
+      {
+        gather(d, dk_);
+        std::vector<unsigned int> owned_a;
+        for (const unsigned int r : a_rows)
+          if (r < n_owned())
+            owned_a.push_back(r);
+        op_.rebase_residual(dk_.data(), owned_a);
+      }
     const std::vector<double> old = fk_;
     // det F before the new rows act, for the volume factors (J = c det F continuous; update_vp
     // runs once per particle).

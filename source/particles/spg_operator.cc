@@ -159,6 +159,8 @@ namespace shard::particles
       throw std::invalid_argument("SpgOperator: one residual weight per owned particle expected");
     lambda_ = lambda;
     xi_.clear();
+    residual_offset_.clear();
+    last_residual_.assign(3 * n_i_, 0.);
     const CsrView g = view(stencils.g, true);
     const CsrView a = view(stencils.a, false);
     smoothing_.reinit(a, g, n_k_);
@@ -255,13 +257,51 @@ namespace shard::particles
     for (unsigned int e = a.offsets[i]; e < a.offsets[i + 1]; ++e)
       for (unsigned int c = 0; c < 3; ++c)
         s[c] -= a.values[e] * d[3 * a.columns[e] + c];
+    if (!residual_offset_.empty())
+      for (unsigned int c = 0; c < 3; ++c)
+        s[c] -= residual_offset_[3 * i + c];
     double energy = 0;
     for (unsigned int c = 0; c < 3; ++c)
       {
         energy += 0.5 * options_.residual_coefficient * lambda_[i] * s[c] * s[c];
-        scratch_j_[3 * i + c] = lambda_[i] * s[c];
+        scratch_j_[3 * i + c]     = lambda_[i] * s[c];
+        last_residual_[3 * i + c] = s[c];
       }
     residual_energy_[i] = energy;
+  }
+
+  void
+  SpgOperator::rebase_residual(const double *d, const std::vector<unsigned int> &rows, const double *target)
+  {
+    if (options_.stabilization != Stabilization::residual || rows.empty())
+      return;
+    if (residual_offset_.empty())
+      residual_offset_.assign(3 * n_i_, 0.);
+    last_residual_.resize(3 * n_i_, 0.);
+    const CsrView &a = smoothing_.interpolation();
+    for (std::size_t r = 0; r < rows.size(); ++r)
+      {
+        const unsigned int i = rows[r];
+        double             s[3] = {d[3 * i], d[3 * i + 1], d[3 * i + 2]};
+        for (unsigned int e = a.offsets[i]; e < a.offsets[i + 1]; ++e)
+          for (unsigned int c = 0; c < 3; ++c)
+            s[c] -= a.values[e] * d[3 * a.columns[e] + c];
+        const double *t = target ? target + 3 * r : &last_residual_[3 * i];
+        for (unsigned int c = 0; c < 3; ++c)
+          residual_offset_[3 * i + c] = s[c] - t[c];
+      }
+  }
+
+  void
+  SpgOperator::set_residual_offset(const unsigned int i, const double *r0)
+  {
+    if (residual_offset_.empty())
+      {
+        if (r0[0] == 0 && r0[1] == 0 && r0[2] == 0)
+          return;
+        residual_offset_.assign(3 * n_i_, 0.);
+      }
+    std::copy(r0, r0 + 3, &residual_offset_[3 * i]);
   }
 
   void

@@ -965,6 +965,7 @@ namespace shard
     // Kinematics of the new stencils from the current coefficients, then the energy after.
     d_.update_ghost_values();
     v_.update_ghost_values();
+    spg_.keep_residuals(d_, saved);
     stabilization_energy_ = spg_.reset_deformation(d_);
     // The particles that existed keep their relative volume J = c det F across the new
     // stencils (SpgForce::volume_factor); new particles start at c = 1.
@@ -1380,6 +1381,7 @@ namespace shard
           r.particle_values.push_back(p.q);
           r.particle_values.insert(r.particle_values.end(), p.state.begin(), p.state.end());
           r.particle_values.push_back(p.volume_factor);
+          r.particle_values.insert(r.particle_values.end(), p.residual_offset.begin(), p.residual_offset.end());
           r.particle_offsets.push_back(r.particle_values.size());
         }
     r.has_contact = contact_.active();
@@ -1571,12 +1573,13 @@ namespace shard
             const auto    k = it->second.second;
             const double *x = &s.particle_values[s.particle_offsets[k]];
             const unsigned int n_slots = spg_.material(i).n_state_slots();
-            // stress (6), q, history, volume factor
-            if (s.particle_offsets[k + 1] - s.particle_offsets[k] != 8 + n_slots)
+            // stress (6), q, history, volume factor, residual offset (3)
+            if (s.particle_offsets[k + 1] - s.particle_offsets[k] != 11 + n_slots)
               throw std::runtime_error("particle at node " + std::to_string(key_i) +
                                        " has another number of history values");
             spg_.set_state(i, x, x + 7, x[6]);
             spg_.set_volume_factor(i, x[7 + n_slots]);
+            spg_.set_residual_offset(i, x + 8 + n_slots);
           }
         d_.update_ghost_values();
         v_.update_ghost_values();

@@ -41,7 +41,8 @@ history.csv (and fragments.csv, when written) byte for byte equal to those of th
 summary.json to report the thread count.
 --expect-exit K and --expect-message REGEX check a run that must fail; when such a run wrote a
 history (an unstable run keeps its output), its .checks, .summary and --expect-file are checked too.
---checks FILE adds the checks of FILE to those of <case>.checks (a variant of a scene run with --set).
+--checks FILE adds the checks of FILE to those of <case>.checks (a variant of a scene run with --set);
+with --instead-of-checks only the --checks files apply.
 --expect-file NAME checks
 that the run wrote NAME into its output directory (and turns the fragment plots on).
 A failure prints case, column or check, row and both values, and exits 1.
@@ -170,7 +171,8 @@ def check_case(args, outdir, failures):
                 value = interpolate(ts, column(header, data, name), t)
                 check_value(failures, case, f"{name} at t={t:g}", value, expected, a, r, k + 1)
     # The case's own checks, then those of --checks.
-    paths = ([base + ".checks"] if os.path.exists(base + ".checks") else []) + (args.checks or [])
+    own = [] if args.instead_of_checks else ([base + ".checks"] if os.path.exists(base + ".checks") else [])
+    paths = own + (args.checks or [])
     checks = []
     for path in paths:
         with open(path) as f:
@@ -425,6 +427,9 @@ def main():
     ap.add_argument("--set", action="append")
     ap.add_argument("--checks", action="append",
                     help="a further .checks file, applied after the case's own (a variant of a scene run with --set)")
+    ap.add_argument("--instead-of-checks", action="store_true",
+                    help="apply only the --checks files, not the case's own .checks (a variant whose "
+                         "expectations differ, e.g. another impact speed)")
     ap.add_argument("--expect-exit", type=int)
     ap.add_argument("--expect-message")
     ap.add_argument("--expect-file", action="append",

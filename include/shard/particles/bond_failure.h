@@ -63,7 +63,9 @@ namespace shard::particles
    *    values, so that both ends of every local bond see the same numbers;
    * 2. every rank tests the bonds of its owned rows: the rule (mean, either, both) on q^ and
    *    the stretch lambda = |X_J + u_J - X_I - u_I| / |X_J - X_I| against min(s_I, s_J),
-   *    breaking when lambda > s or lambda < 1 / s;
+   *    breaking when lambda > s or lambda < 1 / s, and the opening |x_J - x_I| - |X_J - X_I|
+   *    against the critical crack opening min(w_I, w_J) (a crack across the bond has opened
+   *    fully; a compressed bond never breaks by it);
    * 3. the new bonds of all ranks are gathered, so every rank breaks the same list
    *    (ParticleSet::break_bonds rebuilds the rows from the surviving bonds);
    * 4. owned particles whose relative volume J fell below their material's `minimum volume
@@ -159,6 +161,7 @@ namespace shard::particles
       std::string criterion_text = "none";
       double      threshold      = 0;
       double      stretch        = 0;
+      double      opening        = 0;
       double      volume_ratio   = 0;
     };
     const materials::MaterialLibrary &library_;
@@ -174,7 +177,7 @@ namespace shard::particles
     unsigned long long                n_broken_ = 0, n_free_ = 0;
     /// Per owned particle: criterion, threshold, critical stretch, history slot (-1: none).
     std::vector<BondCriterion> criterion_;
-    std::vector<double>        threshold_, stretch_, value_, volume_ratio_;
+    std::vector<double>        threshold_, stretch_, opening_, value_, volume_ratio_;
     std::vector<int>           slot_;
     /// Per owned particle: whether it still has an intact bond (its value is exchanged as 0
     /// otherwise, so that free particles do not keep the largest value up).

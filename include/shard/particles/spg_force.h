@@ -69,6 +69,9 @@ namespace shard::particles
       double jacobian = 1;
       /// Volume factor c (1), see set_volume_factor().
       double volume_factor = 1;
+      /// Residual of the stabilization at the last evaluation, d - A d - r0 (m), and the
+      /// offset r0 of its row (m), see SpgOperator::rebase_residual().
+      std::array<double, 3> residual{}, residual_offset{};
       /// Cauchy stress (Pa).
       std::array<double, 6> stress{};
       /// History slots (material order).
@@ -82,6 +85,23 @@ namespace shard::particles
     /// Sets stress, history slots (material order) and bulk viscosity of owned particle @p i.
     void
     set_state(unsigned int i, const double *stress, const double *history, double q);
+
+    /**
+     * @brief After the stencils were rebuilt (a conversion): the residual stabilization of
+     * every owned particle continues from the residual it had in @p saved (zero for a particle
+     * that is new), so that its energy does not jump (SpgOperator::rebase_residual()).
+     * @param d the coefficients (ghost values set)
+     */
+    void
+    keep_residuals(const mesh::Vector &d, const std::map<unsigned long long, SavedParticle> &saved);
+
+    /// Sets the residual offset r0 of owned particle @p i (restart).
+    void
+    set_residual_offset(unsigned int i, const double *r0)
+    {
+      op_.set_residual_offset(i, r0);
+      evaluated_ = false;
+    }
 
     /**
      * @brief Sets the stored deformation gradient and physical displacement from the current
