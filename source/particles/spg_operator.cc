@@ -253,10 +253,8 @@ namespace shard::particles
   void
   SpgOperator::residual_row(const CsrView &a, const double *d, const unsigned int i) const
   {
-    double s[3] = {d[3 * i], d[3 * i + 1], d[3 * i + 2]};
-    for (unsigned int e = a.offsets[i]; e < a.offsets[i + 1]; ++e)
-      for (unsigned int c = 0; c < 3; ++c)
-        s[c] -= a.values[e] * d[3 * a.columns[e] + c];
+    double s[3];
+    plain_residual(a, d, i, s);
     if (!residual_offset_.empty())
       for (unsigned int c = 0; c < 3; ++c)
         s[c] -= residual_offset_[3 * i + c];
@@ -271,6 +269,16 @@ namespace shard::particles
   }
 
   void
+  SpgOperator::plain_residual(const CsrView &a, const double *d, const unsigned int i, double *s)
+  {
+    for (unsigned int c = 0; c < 3; ++c)
+      s[c] = d[3 * i + c];
+    for (unsigned int e = a.offsets[i]; e < a.offsets[i + 1]; ++e)
+      for (unsigned int c = 0; c < 3; ++c)
+        s[c] -= a.values[e] * d[3 * a.columns[e] + c];
+  }
+
+  void
   SpgOperator::rebase_residual(const double *d, const std::vector<unsigned int> &rows, const double *target)
   {
     if (options_.stabilization != Stabilization::residual || rows.empty())
@@ -282,10 +290,8 @@ namespace shard::particles
     for (std::size_t r = 0; r < rows.size(); ++r)
       {
         const unsigned int i = rows[r];
-        double             s[3] = {d[3 * i], d[3 * i + 1], d[3 * i + 2]};
-        for (unsigned int e = a.offsets[i]; e < a.offsets[i + 1]; ++e)
-          for (unsigned int c = 0; c < 3; ++c)
-            s[c] -= a.values[e] * d[3 * a.columns[e] + c];
+        double             s[3];
+        plain_residual(a, d, i, s);
         const double *t = target ? target + 3 * r : &last_residual_[3 * i];
         for (unsigned int c = 0; c < 3; ++c)
           residual_offset_[3 * i + c] = s[c] - t[c];

@@ -314,6 +314,9 @@ namespace shard::particles
     std::vector<double> residual_offset_;
     /// Residual d_I - (A d)_I - r0_I of each owned row at the last evaluation (3 per row).
     mutable std::vector<double> last_residual_;
+    /// d_i - (A d)_i of row @p i without the offset, into @p s (3 values).
+    static void
+    plain_residual(const CsrView &a, const double *d, unsigned int i, double *s);
     /// Residual of owned row i: weight into scratch_j_, energy into residual_energy_.
     void
     residual_row(const CsrView &a, const double *d, unsigned int i) const;
