@@ -26,6 +26,10 @@ namespace shard::materials
     constexpr double biaxial_ratio = 1.15;
     /// Floor of the base (1 + p/(r_f f't)) of the damage increment (design 3.1, open point 9).
     constexpr double damage_base_floor = 1e-2;
+    /// Largest elastic stress increment M0 e of one tensile sub-increment, as a fraction of f't.
+    constexpr double max_tension_increment = 0.1;
+    /// Most sub-increments of one step (a step of 128 x 0.1 f't = 12.8 f't is resolved).
+    constexpr unsigned int max_tension_substeps = 128;
 
     /// The 50 MPa EOS 8 table of Yin et al. (2023): eps_v, p (MPa), K (GPa).
     constexpr double eos50[10][3] = {{0., 0., 12.38},
@@ -781,245 +785,291 @@ namespace shard::materials
   void
   KccConcrete::update(const PointBatch &batch) const
   {
-    const KccParameters &k      = par_;
-    const double         inv_dt = batch.dt > 0. ? 1. / batch.dt : 0.;
-    const double         ft     = k.tensile_strength;
-    const double         lm     = k.lambda_m;
-    const std::size_t    n_tab  = k.lambda.size();
+    const double inv_dt = batch.dt > 0. ? 1. / batch.dt : 0.;
+    const double m0     = par_.density * initial_wave_speed() * initial_wave_speed();
 
     for (unsigned int i = 0; i < batch.n; ++i)
       {
-        const double *de  = batch.strain_increment + n_sym * i;
-        double       *sig = batch.stress + n_sym * i;
-        double       *st  = batch.state + n_slots * i;
-        const double  h   = batch.characteristic_length != nullptr ? batch.characteristic_length[i] : 0.;
-        const double  stretch = (k.localization_width > 0. && h > 0.) ? k.localization_width / h : 1.;
+        const double *de      = batch.strain_increment + n_sym * i;
+        double       *sig     = batch.stress + n_sym * i;
+        double       *st      = batch.state + n_slots * i;
+        const double  h       = batch.characteristic_length != nullptr ? batch.characteristic_length[i] : 0.;
+        const double  stretch = (par_.localization_width > 0. && h > 0.) ? par_.localization_width / h : 1.;
 
         // Rate of the step: effective rate of the whole rate of deformation.
-        const double rate        = std::sqrt((2. / 3.) * internal::contract(de, de)) * inv_dt;
-        st[slot_strain_rate]     = rate;
+        const double e_eff   = std::sqrt((2. / 3.) * internal::contract(de, de));
+        const double rate    = e_eff * inv_dt;
+        st[slot_strain_rate] = rate;
+        const double ev      = std::log(batch.relative_volume[i]);
+        const double tr      = de[0] + de[1] + de[2];
 
-        // 1-2. EOS at the trial volumetric state; G from its unloading modulus.
-        const double ev    = std::log(batch.relative_volume[i]);
-        double       ev_p  = st[slot_plastic_volume];
-        double       x     = -(ev - ev_p);
-        auto         eos   = eos_.evaluate(x, st[slot_max_compaction]);
-        double       p     = eos.pressure;
-        const double g     = shear_modulus(eos.unloading_modulus);
-        double       s[n_sym];
-        double       d[n_sym];
-        internal::deviator(de, d);
-        internal::trial_deviator(sig, d, 2. * g, s);
-
-        // 3. Rate factor, fixed within the step: tension curve when the trial pressure is < 0.
-        const double rf      = dynamic_increase_factor(rate, p < 0.);
-        st[slot_rate_factor] = rf;
-        const double ph      = p / rf;
-
-        // 4-5. Trial check: r' lies in [psi, 1], so q <= psi Y_c is elastic without the angle.
-        double       lambda = st[slot_lambda];
-        const double q      = std::sqrt(1.5 * internal::contract(s, s));
-        const double yc     = current_surface(p, lambda, rf, stretch);
-        const double psi_p  = psi(ph);
-        double       cos_theta = 1.;
-        bool         have_angle = false; // cos_theta is that of s (scaling keeps the angle)
-        bool         returned   = false; // last_limit is r' Y at the final p and lambda
-        double       last_d     = -1.;
-        double       last_limit = 0.;
-        double scale = 1.;
-        double dp    = 0.; // increment of effective plastic strain
-        if (q > psi_p * yc)
+        // Sub-increments in tension (doc/materials/kcc.md, decision 12). The damage increment
+        // of the return is evaluated at the trial pressure; a step that goes far past the
+        // tensile peak puts it far beyond -f't, where the base of the damage denominator is
+        // floored and lambda grows up to 500 times too fast: the point jumps to full damage in
+        // one step and the result depends on the step. A step that opens the volume, ends with a
+        // tensile trial pressure and has an elastic stress increment M0 e above
+        // max_tension_increment f't is split into equal parts (at most max_tension_substeps),
+        // each with the tension rate factor of the whole step.
+        unsigned int n_sub = 1;
+        double       p_trial = 0.;
+        if (tr > 0. && par_.tensile_strength > 0.)
           {
-            cos_theta       = cos_lode_angle(s);
-            have_angle      = true;
-            const double rp = willam_warnke(cos_theta, psi_p);
-            if (q > rp * yc)
+            const double ratio = m0 * std::max(e_eff, tr) / (max_tension_increment * par_.tensile_strength);
+            if (ratio > 1.)
               {
-                // 6-9. Consistency with the dilatancy coupled in (design 5, open point 6):
-                //   g(D) = q* - 3G D - r'(theta, psi(p(D))) Y(p(D), lambda_n + c D) = 0,
-                //   p(D) = EOS(x* + omega_eff Y'(p*) D).
-                // The flow direction (Y' at the trial pressure, omega_eff at lambda_n) and the
-                // damage denominator c are frozen at the trial state. Coupling the pressure is
-                // what keeps a dilatant, pressure-sensitive point stable under lateral stress
-                // control: the one-pass order (dilatancy after the return) gives a negative
-                // lateral stiffness just before the peak.
-                const double base    = std::max(1. + ph / ft, damage_base_floor);
-                const double c       = 1. / (rf * std::pow(base, ph >= 0. ? k.b1 : k.b2));
-                const double three_g = 3. * g;
-                const double omega_eff =
-                  lambda > lm && k.edrop > 0. ? k.omega * std::pow(eta(lambda, stretch), k.edrop) : k.omega;
-                double dilatancy = 0.; // d eps_v^p / d D
-                if (omega_eff > 0.)
-                  {
-                    const double hp   = 1e-6 * std::max(std::abs(p), rf * ft);
-                    const auto   yfun = [&](const double pp) {
-                      return willam_warnke(cos_theta, psi(pp / rf)) * current_surface(pp, lambda, rf, stretch);
-                    };
-                    dilatancy = omega_eff * std::max((yfun(p + hp) - yfun(p - hp)) / (2. * hp), 0.);
-                  }
-                const double x_trial = x;
-                const double x_max_n = st[slot_max_compaction];
-                const auto   pressure = [&](const double dd) {
-                  return dilatancy > 0. ? eos_.pressure(x_trial + dilatancy * dd, x_max_n) : p;
-                };
-                const auto gfun = [&](const double dd) {
-                  const double pd = pressure(dd);
-                  last_d          = dd;
-                  last_limit =
-                    willam_warnke(cos_theta, psi(pd / rf)) * current_surface(pd, lambda + c * dd, rf, stretch);
-                  return q - three_g * dd - last_limit;
-                };
-                // Bracket: walk the rows of the damage table (eta is linear between them), then
-                // secant steps inside the bracketing row, where g is smooth up to the EOS and
-                // psi breakpoints.
-                const double d_max = q / three_g;
-                double       ds = 0., gs = q - rp * yc, de_ = d_max, ge = 0.;
-                bool         bracketed = false; // g(d_max) is needed only without a row bracket
-                for (std::size_t t = 0; t < n_tab; ++t)
-                  {
-                    const double lt = k.lambda[t] <= lm ? k.lambda[t] : lm + (k.lambda[t] - lm) * stretch;
-                    if (lt <= lambda)
-                      continue;
-                    const double dt_ = (lt - lambda) / c;
-                    if (dt_ >= d_max)
-                      break;
-                    const double gt = gfun(dt_);
-                    if (gt <= 0.)
-                      {
-                        de_       = dt_;
-                        ge        = gt;
-                        bracketed = true;
-                        break;
-                      }
-                    ds = dt_;
-                    gs = gt;
-                  }
-                if (!bracketed)
-                  ge = gfun(d_max);
-                // Safeguarded secant inside the bracket [a, b] (g(a) > 0 > g(b)): the secant
-                // through the last two iterates when it falls inside, the bisection otherwise or
-                // when |g| did not halve. Regula falsi alone keeps the far end of the bracket and
-                // converges from one side (four to five evaluations to 1e-12 q).
-                double root = de_;
-                if (ge < 0.)
-                  {
-                    double a = ds, fa = gs, b = de_, fb = ge;
-                    // The first pair: the bracket ends, the one with the smaller |g| as the later
-                    // iterate, so that the second secant uses it and the first interior point.
-                    const bool a_closer = fa < -fb;
-                    double     x0 = a_closer ? b : a, f0 = a_closer ? fb : fa;
-                    double     x1 = a_closer ? a : b, f1 = a_closer ? fa : fb;
-                    for (unsigned int it = 0; it < 100; ++it)
-                      {
-                        double next = f1 != f0 ? x1 - f1 * (x1 - x0) / (f1 - f0) : 0.5 * (a + b);
-                        if (!(next > a && next < b))
-                          next = 0.5 * (a + b);
-                        const double fr = gfun(next);
-                        root            = next;
-                        if (std::abs(fr) <= 1e-12 * q || b - a <= 1e-14 * b)
-                          break;
-                        (fr > 0. ? a : b)   = next;
-                        (fr > 0. ? fa : fb) = fr;
-                        if (it > 0 && std::abs(fr) > 0.5 * std::abs(f1))
-                          {
-                            // Slow: a bisection point, then secants from it and the far end.
-                            const double mid = 0.5 * (a + b);
-                            const double fm  = gfun(mid);
-                            root             = mid;
-                            if (std::abs(fm) <= 1e-12 * q)
-                              break;
-                            (fm > 0. ? a : b)   = mid;
-                            (fm > 0. ? fa : fb) = fm;
-                            x0                  = fm > 0. ? b : a;
-                            f0                  = fm > 0. ? fb : fa;
-                            x1                  = mid;
-                            f1                  = fm;
-                            continue;
-                          }
-                        x0 = x1;
-                        f0 = f1;
-                        x1 = next;
-                        f1 = fr;
-                      }
-                  }
-                dp     = std::clamp(root, 0., d_max);
-                lambda = lambda + c * dp;
-                scale  = (q - three_g * dp) / q;
-                if (dilatancy > 0.)
-                  {
-                    // x as in g(D), so that the final pressure is the one of the last g(D).
-                    ev_p += dilatancy * dp;
-                    x   = x_trial + dilatancy * dp;
-                    eos = eos_.evaluate(x, x_max_n);
-                    p   = eos.pressure;
-                  }
-                returned = last_d == dp;
+                p_trial = eos_.evaluate(-(ev - st[slot_plastic_volume]), st[slot_max_compaction]).pressure;
+                if (p_trial < 0.)
+                  n_sub = static_cast<unsigned int>(std::min(std::ceil(ratio), double(max_tension_substeps)));
               }
           }
-        for (unsigned int c = 0; c < n_sym; ++c)
-          s[c] *= scale;
-
-        // 10. Tension cutoff (crack opening), with the volumetric damage of b3; two passes so
-        // that the damage of this step lowers the limit, then a last clamp at the final limit.
-        for (unsigned int pass = 0; pass < 3; ++pass)
+        double wave = 0.;
+        if (n_sub == 1)
+          wave = update_point(de, ev, rate, 0., stretch, sig, st);
+        else
           {
-            const double p_min = tensile_limit(lambda, rf, stretch);
-            if (!(p < p_min))
-              break;
-            returned = false;
-            const double x_cut =
-              std::min(eos_.compaction_at_pressure(p_min, eos.max_compaction), eos.max_compaction);
-            const double open  = x_cut - x;
-            ev_p += open;
-            x = x_cut;
-            p = p_min;
-            for (double &c : s)
-              c = 0.;
-            if (pass < 2)
-              lambda += k.b3 * open / rf;
+            double part[n_sym];
+            for (unsigned int c = 0; c < n_sym; ++c)
+              part[c] = de[c] / n_sub;
+            const double rf = dynamic_increase_factor(rate, true);
+            for (unsigned int sub = 1; sub <= n_sub; ++sub)
+              wave = update_point(part, ev - (1. - double(sub) / n_sub) * tr, rate, rf, stretch, sig, st);
           }
-
-        // Keep the final state on or inside the surface at the final pressure (the dilatancy
-        // raised p, which normally leaves the point inside). After a return whose last g(D) was
-        // at the final D (and no tension cut), that evaluation already holds the limit.
-        {
-          const double q2 = std::sqrt(1.5 * internal::contract(s, s));
-          const double ph2 = p / rf;
-          const double y2  = returned ? 0. : current_surface(p, lambda, rf, stretch);
-          if (returned ? q2 > last_limit : q2 > psi(ph2) * y2)
-            {
-              const double lim =
-                returned ? last_limit
-                         : willam_warnke(have_angle ? cos_theta : cos_lode_angle(s), psi(ph2)) * y2;
-              if (q2 > lim)
-                {
-                  dp += (q2 - lim) / (3. * g);
-                  const double f = lim / q2;
-                  for (double &c : s)
-                    c *= f;
-                }
-            }
-        }
-
-        // 11. History and stress.
-        st[slot_plastic_strain] += dp;
-        st[slot_lambda]         = lambda;
-        st[slot_plastic_volume] = ev_p;
-        st[slot_max_compaction] = eos.max_compaction;
-        st[slot_delta]          = std::max(st[slot_delta], scaled_damage(lambda, stretch));
-        if (k.failure_scaled_damage > 0. && st[slot_delta] >= k.failure_scaled_damage)
-          st[slot_failed] = 1.;
-        sig[0] = s[0] - p;
-        sig[1] = s[1] - p;
-        sig[2] = s[2] - p;
-        sig[3] = s[3];
-        sig[4] = s[4];
-        sig[5] = s[5];
         if (batch.wave_speed != nullptr)
+          batch.wave_speed[i] = wave;
+      }
+  }
+
+  double
+  KccConcrete::update_point(const double *de,
+                            const double  ev,
+                            const double  rate,
+                            const double  rate_factor,
+                            const double  stretch,
+                            double       *sig,
+                            double       *st) const
+  {
+    const KccParameters &k     = par_;
+    const double         ft    = k.tensile_strength;
+    const double         lm    = k.lambda_m;
+    const std::size_t    n_tab = k.lambda.size();
+
+    // 1-2. EOS at the trial volumetric state; G from its unloading modulus.
+    double       ev_p  = st[slot_plastic_volume];
+    double       x     = -(ev - ev_p);
+    auto         eos   = eos_.evaluate(x, st[slot_max_compaction]);
+    double       p     = eos.pressure;
+    const double g     = shear_modulus(eos.unloading_modulus);
+    double       s[n_sym];
+    double       d[n_sym];
+    internal::deviator(de, d);
+    internal::trial_deviator(sig, d, 2. * g, s);
+
+    // 3. Rate factor, fixed within the step: tension curve when the trial pressure is < 0.
+    const double rf      = rate_factor > 0. ? rate_factor : dynamic_increase_factor(rate, p < 0.);
+    st[slot_rate_factor] = rf;
+    const double ph      = p / rf;
+
+    // 4-5. Trial check: r' lies in [psi, 1], so q <= psi Y_c is elastic without the angle.
+    double       lambda = st[slot_lambda];
+    const double q      = std::sqrt(1.5 * internal::contract(s, s));
+    const double yc     = current_surface(p, lambda, rf, stretch);
+    const double psi_p  = psi(ph);
+    double       cos_theta = 1.;
+    bool         have_angle = false; // cos_theta is that of s (scaling keeps the angle)
+    bool         returned   = false; // last_limit is r' Y at the final p and lambda
+    double       last_d     = -1.;
+    double       last_limit = 0.;
+    double scale = 1.;
+    double dp    = 0.; // increment of effective plastic strain
+    if (q > psi_p * yc)
+      {
+        cos_theta       = cos_lode_angle(s);
+        have_angle      = true;
+        const double rp = willam_warnke(cos_theta, psi_p);
+        if (q > rp * yc)
           {
-            const double gw = shear_modulus(eos.unloading_modulus);
-            batch.wave_speed[i] = std::sqrt((eos.wave_modulus + 4. / 3. * gw) / k.density);
+            // 6-9. Consistency with the dilatancy coupled in (design 5, open point 6):
+            //   g(D) = q* - 3G D - r'(theta, psi(p(D))) Y(p(D), lambda_n + c D) = 0,
+            //   p(D) = EOS(x* + omega_eff Y'(p*) D).
+            // The flow direction (Y' at the trial pressure, omega_eff at lambda_n) and the
+            // damage denominator c are frozen at the trial state. Coupling the pressure is
+            // what keeps a dilatant, pressure-sensitive point stable under lateral stress
+            // control: the one-pass order (dilatancy after the return) gives a negative
+            // lateral stiffness just before the peak.
+            const double base    = std::max(1. + ph / ft, damage_base_floor);
+            const double c       = 1. / (rf * std::pow(base, ph >= 0. ? k.b1 : k.b2));
+            const double three_g = 3. * g;
+            const double omega_eff =
+              lambda > lm && k.edrop > 0. ? k.omega * std::pow(eta(lambda, stretch), k.edrop) : k.omega;
+            double dilatancy = 0.; // d eps_v^p / d D
+            if (omega_eff > 0.)
+              {
+                const double hp   = 1e-6 * std::max(std::abs(p), rf * ft);
+                const auto   yfun = [&](const double pp) {
+                  return willam_warnke(cos_theta, psi(pp / rf)) * current_surface(pp, lambda, rf, stretch);
+                };
+                dilatancy = omega_eff * std::max((yfun(p + hp) - yfun(p - hp)) / (2. * hp), 0.);
+              }
+            const double x_trial = x;
+            const double x_max_n = st[slot_max_compaction];
+            const auto   pressure = [&](const double dd) {
+              return dilatancy > 0. ? eos_.pressure(x_trial + dilatancy * dd, x_max_n) : p;
+            };
+            const auto gfun = [&](const double dd) {
+              const double pd = pressure(dd);
+              last_d          = dd;
+              last_limit =
+                willam_warnke(cos_theta, psi(pd / rf)) * current_surface(pd, lambda + c * dd, rf, stretch);
+              return q - three_g * dd - last_limit;
+            };
+            // Bracket: walk the rows of the damage table (eta is linear between them), then
+            // secant steps inside the bracketing row, where g is smooth up to the EOS and
+            // psi breakpoints.
+            const double d_max = q / three_g;
+            double       ds = 0., gs = q - rp * yc, de_ = d_max, ge = 0.;
+            bool         bracketed = false; // g(d_max) is needed only without a row bracket
+            for (std::size_t t = 0; t < n_tab; ++t)
+              {
+                const double lt = k.lambda[t] <= lm ? k.lambda[t] : lm + (k.lambda[t] - lm) * stretch;
+                if (lt <= lambda)
+                  continue;
+                const double dt_ = (lt - lambda) / c;
+                if (dt_ >= d_max)
+                  break;
+                const double gt = gfun(dt_);
+                if (gt <= 0.)
+                  {
+                    de_       = dt_;
+                    ge        = gt;
+                    bracketed = true;
+                    break;
+                  }
+                ds = dt_;
+                gs = gt;
+              }
+            if (!bracketed)
+              ge = gfun(d_max);
+            // Safeguarded secant inside the bracket [a, b] (g(a) > 0 > g(b)): the secant
+            // through the last two iterates when it falls inside, the bisection otherwise or
+            // when |g| did not halve. Regula falsi alone keeps the far end of the bracket and
+            // converges from one side (four to five evaluations to 1e-12 q).
+            double root = de_;
+            if (ge < 0.)
+              {
+                double a = ds, fa = gs, b = de_, fb = ge;
+                // The first pair: the bracket ends, the one with the smaller |g| as the later
+                // iterate, so that the second secant uses it and the first interior point.
+                const bool a_closer = fa < -fb;
+                double     x0 = a_closer ? b : a, f0 = a_closer ? fb : fa;
+                double     x1 = a_closer ? a : b, f1 = a_closer ? fa : fb;
+                for (unsigned int it = 0; it < 100; ++it)
+                  {
+                    double next = f1 != f0 ? x1 - f1 * (x1 - x0) / (f1 - f0) : 0.5 * (a + b);
+                    if (!(next > a && next < b))
+                      next = 0.5 * (a + b);
+                    const double fr = gfun(next);
+                    root            = next;
+                    if (std::abs(fr) <= 1e-12 * q || b - a <= 1e-14 * b)
+                      break;
+                    (fr > 0. ? a : b)   = next;
+                    (fr > 0. ? fa : fb) = fr;
+                    if (it > 0 && std::abs(fr) > 0.5 * std::abs(f1))
+                      {
+                        // Slow: a bisection point, then secants from it and the far end.
+                        const double mid = 0.5 * (a + b);
+                        const double fm  = gfun(mid);
+                        root             = mid;
+                        if (std::abs(fm) <= 1e-12 * q)
+                          break;
+                        (fm > 0. ? a : b)   = mid;
+                        (fm > 0. ? fa : fb) = fm;
+                        x0                  = fm > 0. ? b : a;
+                        f0                  = fm > 0. ? fb : fa;
+                        x1                  = mid;
+                        f1                  = fm;
+                        continue;
+                      }
+                    x0 = x1;
+                    f0 = f1;
+                    x1 = next;
+                    f1 = fr;
+                  }
+              }
+            dp     = std::clamp(root, 0., d_max);
+            lambda = lambda + c * dp;
+            scale  = (q - three_g * dp) / q;
+            if (dilatancy > 0.)
+              {
+                // x as in g(D), so that the final pressure is the one of the last g(D).
+                ev_p += dilatancy * dp;
+                x   = x_trial + dilatancy * dp;
+                eos = eos_.evaluate(x, x_max_n);
+                p   = eos.pressure;
+              }
+            returned = last_d == dp;
           }
       }
+    for (unsigned int c = 0; c < n_sym; ++c)
+      s[c] *= scale;
+
+    // 10. Tension cutoff (crack opening), with the volumetric damage of b3; two passes so
+    // that the damage of this step lowers the limit, then a last clamp at the final limit.
+    for (unsigned int pass = 0; pass < 3; ++pass)
+      {
+        const double p_min = tensile_limit(lambda, rf, stretch);
+        if (!(p < p_min))
+          break;
+        returned = false;
+        const double x_cut =
+          std::min(eos_.compaction_at_pressure(p_min, eos.max_compaction), eos.max_compaction);
+        const double open  = x_cut - x;
+        ev_p += open;
+        x = x_cut;
+        p = p_min;
+        for (double &c : s)
+          c = 0.;
+        if (pass < 2)
+          lambda += k.b3 * open / rf;
+      }
+
+    // Keep the final state on or inside the surface at the final pressure (the dilatancy
+    // raised p, which normally leaves the point inside). After a return whose last g(D) was
+    // at the final D (and no tension cut), that evaluation already holds the limit.
+    {
+      const double q2 = std::sqrt(1.5 * internal::contract(s, s));
+      const double ph2 = p / rf;
+      const double y2  = returned ? 0. : current_surface(p, lambda, rf, stretch);
+      if (returned ? q2 > last_limit : q2 > psi(ph2) * y2)
+        {
+          const double lim =
+            returned ? last_limit
+                     : willam_warnke(have_angle ? cos_theta : cos_lode_angle(s), psi(ph2)) * y2;
+          if (q2 > lim)
+            {
+              dp += (q2 - lim) / (3. * g);
+              const double f = lim / q2;
+              for (double &c : s)
+                c *= f;
+            }
+        }
+    }
+
+    // 11. History and stress.
+    st[slot_plastic_strain] += dp;
+    st[slot_lambda]         = lambda;
+    st[slot_plastic_volume] = ev_p;
+    st[slot_max_compaction] = eos.max_compaction;
+    st[slot_delta]          = std::max(st[slot_delta], scaled_damage(lambda, stretch));
+    if (k.failure_scaled_damage > 0. && st[slot_delta] >= k.failure_scaled_damage)
+      st[slot_failed] = 1.;
+    sig[0] = s[0] - p;
+    sig[1] = s[1] - p;
+    sig[2] = s[2] - p;
+    sig[3] = s[3];
+    sig[4] = s[4];
+    sig[5] = s[5];
+    const double gw = shear_modulus(eos.unloading_modulus);
+    return std::sqrt((eos.wave_modulus + 4. / 3. * gw) / k.density);
   }
 } // namespace shard::materials

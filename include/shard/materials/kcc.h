@@ -250,6 +250,26 @@ namespace shard::materials
     default_dif(double rate, double fc, bool tension);
 
   private:
+    /**
+     * @brief Stress update of one point over one (sub-)increment of a step.
+     * @param de Strain increment (6).
+     * @param ev Logarithmic volumetric strain ln J at the end of the increment.
+     * @param rate Effective strain rate of the whole step (1/s).
+     * @param rate_factor Rate factor to use; 0 takes it from @p rate and the trial pressure.
+     * @param stretch Post-peak stretch w/h of the damage table (1 without regularization).
+     * @param sig In: stress at the start; out: at the end (Pa).
+     * @param st History slots of the point (in/out).
+     * @return Dilatational wave speed of the final state (m/s).
+     */
+    double
+    update_point(const double *de,
+                 double        ev,
+                 double        rate,
+                 double        rate_factor,
+                 double        stretch,
+                 double       *sig,
+                 double       *st) const;
+
     /// The constants of the built-in DIF curves for one f'c (powers of f'c computed once).
     struct DifCurves
     {
