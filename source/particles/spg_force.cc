@@ -307,6 +307,11 @@ namespace shard::particles
                 << " iterations, defect " << solve.initial_defect << " -> " << solve.final_defect
                 << "); the Galerkin patch test holds only to that level.\n";
     particles.replace_gradients(correction.corrected_gradients(lambda.data()));
+    const auto limited = Utilities::MPI::sum(correction.limited_rows(), comm);
+    if (limited > 0 && Utilities::MPI::this_mpi_process(comm) == 0)
+      std::cerr << "shard: particles: " << limited
+                << " gradient rows keep a limited consistent correction (no entry above 4 / spacing; "
+                   "doc/theory/spg_stabilization.md, \"Correction limiter\")\n";
     // Rows with broken bonds keep their plain RK gradients (doc/manual/failure.md).
     particles.rebuild_broken_rows();
   }

@@ -23,6 +23,9 @@ namespace shard::particles
   {
     /// Rows per task of the threaded passes (a fixed partition; each row is written by one task).
     constexpr unsigned int rows_per_task = 1024;
+    /// Largest entry of the consistent correction of a gradient row times the row's length l_I
+    /// (doc/theory/spg_stabilization.md, "Correction limiter").
+    constexpr double max_correction_ratio = 4.;
 
     /// Rewrites the columns of @p s through @p map (cloud index -> compact index).
     void
@@ -486,6 +489,7 @@ namespace shard::particles
     const Stencil &g = st_.g;
     basis_.resize(4 * g.columns.size());
     inverse_moment_.resize(16 * n_i_);
+    row_length_.resize(n_i_);
     for (unsigned int i = 0; i < n_i_; ++i)
       {
         const Point3 &xi = position_j[i];
@@ -494,6 +498,7 @@ namespace shard::particles
           for (unsigned int c = 0; c < 3; ++c)
             l = std::max(l, std::abs(position_j[g.columns[e]][c] - xi[c]));
         l = l > 0 ? l : 1.;
+        row_length_[i] = l;
         double m[16] = {};
         for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
           {
@@ -597,6 +602,7 @@ namespace shard::particles
   ConsistentCorrection::corrected_gradients(const double *lambda) const
   {
     const Stencil      &g = st_.g;
+    limited_rows_          = 0;
     std::vector<double> out(g.grad.begin(), g.grad.begin() + 3 * std::size_t(g.row_offsets[n_i_]));
     double              mu[12];
     for (unsigned int i = 0; i < n_i_; ++i)
@@ -604,13 +610,30 @@ namespace shard::particles
         if (std::isnan(inverse_moment_[16 * i]))
           continue;
         row_fit(i, lambda, mu);
+        // Limiter: no entry of a row's correction exceeds max_correction_ratio / l_I (l_I the
+        // largest coordinate distance in the stencil, the spacing on a lattice). Scaling the
+        // row's correction keeps linear exactness (its sums vanish) and gives up part of the
+        // integration constraint at that row only.
+        double largest = 0;
         for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
           {
             const double *p = &basis_[4 * e];
             const double *l = &lambda[3 * g.columns[e]];
             for (unsigned int c = 0; c < 3; ++c)
-              out[3 * e + c] +=
-                volume_[i] * (l[c] - p[0] * mu[c] - p[1] * mu[3 + c] - p[2] * mu[6 + c] - p[3] * mu[9 + c]);
+              largest = std::max(largest, std::abs(volume_[i] * (l[c] - p[0] * mu[c] - p[1] * mu[3 + c] -
+                                                                  p[2] * mu[6 + c] - p[3] * mu[9 + c])));
+          }
+        const double bound = max_correction_ratio / row_length_[i];
+        const double scale = largest > bound ? bound / largest : 1.;
+        if (scale < 1.)
+          ++limited_rows_;
+        for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+          {
+            const double *p = &basis_[4 * e];
+            const double *l = &lambda[3 * g.columns[e]];
+            for (unsigned int c = 0; c < 3; ++c)
+              out[3 * e + c] += scale * volume_[i] *
+                                (l[c] - p[0] * mu[c] - p[1] * mu[3 + c] - p[2] * mu[6 + c] - p[3] * mu[9 + c]);
           }
       }
     return out;

@@ -390,6 +390,15 @@ namespace shard::particles
     std::vector<double>
     corrected_gradients(const double *lambda) const;
 
+    /// Rows whose correction the last corrected_gradients() scaled down: no entry of a row's
+    /// correction exceeds 4 / l_I, l_I the row's largest coordinate distance in its stencil
+    /// (doc/theory/spg_stabilization.md, "Correction limiter").
+    unsigned int
+    limited_rows() const
+    {
+      return limited_rows_;
+    }
+
     /// Number of rows J.
     unsigned int
     n_j() const
@@ -430,6 +439,10 @@ namespace shard::particles
     std::vector<double> basis_;
     /// Per owned row: the inverse moment matrix of the basis over the stencil, 16 doubles.
     std::vector<double> inverse_moment_;
+    /// Per owned row: l_I, the largest coordinate distance from X_I within its stencil.
+    std::vector<double> row_length_;
+    /// Rows limited by the last corrected_gradients().
+    mutable unsigned int limited_rows_ = 0;
 
     /// mu_I = M_I^-1 sum_J p_J lambda_J (4 x 3, row-major) for row @p i.
     void

@@ -596,6 +596,67 @@ TEST(SpgStability, CoarseSpaceKeepsTheCorrectionAndCutsIterations)
   EXPECT_LT(4 * iterations[1], iterations[0]);
 }
 
+// The limiter of the consistent correction (doc/theory/spg_stabilization.md, "Correction
+// limiter"): no entry of a row's correction exceeds 4 / l_I, and a limited row still
+// differentiates linear fields exactly (sum_J G_IJ = 0, sum_J G_IJ (x) X_J = 1), because the
+// row's correction is scaled as a whole. Driven with multipliers lambda of growing size on a
+// jittered 6^3 block (dilation 1.5, l_I = 1 inside): small ones leave every row as the formula
+// gives it, large ones limit every row.
+TEST(SpgStability, CorrectionLimiterKeepsLinearExactness)
+{
+  const Block                b(6, 1.5, make(Smoothing::two_level, Stabilization::none, 0, none), 0.2);
+  const unsigned int         m = b.size();
+  const ConsistentCorrection correction(b.stencils, b.cloud.position, b.volume.data());
+  const Stencil             &g = b.stencils.g;
+  std::mt19937               rng(3);
+  std::uniform_real_distribution<double> r(-1, 1);
+  std::vector<double>                    unit(3 * m);
+  for (double &v : unit)
+    v = r(rng);
+  for (const double size : {1e-3, 1e3})
+    {
+      std::vector<double> lambda(unit);
+      for (double &v : lambda)
+        v *= size;
+      const auto   grad    = correction.corrected_gradients(lambda.data());
+      const auto   limited = correction.limited_rows();
+      double       worst_sum = 0, worst_moment = 0, worst_ratio = 0;
+      for (unsigned int i = 0; i < m; ++i)
+        {
+          double l = 0;
+          for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+            for (unsigned int c = 0; c < 3; ++c)
+              l = std::max(l, std::abs(b.cloud.position[g.columns[e]][c] - b.cloud.position[i][c]));
+          double sum[3] = {0, 0, 0}, moment[3][3] = {};
+          for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+            for (unsigned int c = 0; c < 3; ++c)
+              {
+                const double v = grad[3 * e + c];
+                worst_ratio    = std::max(worst_ratio, std::abs(v - g.grad[3 * e + c]) * l);
+                sum[c] += v;
+                for (unsigned int a = 0; a < 3; ++a)
+                  moment[a][c] += b.cloud.position[g.columns[e]][a] * v;
+              }
+          for (unsigned int c = 0; c < 3; ++c)
+            {
+              worst_sum = std::max(worst_sum, std::abs(sum[c]));
+              for (unsigned int a = 0; a < 3; ++a)
+                worst_moment = std::max(worst_moment, std::abs(moment[a][c] - (a == c ? 1. : 0.)));
+            }
+        }
+      std::printf("correction limiter, |lambda| <= %g: %u of %u rows limited, max |C| l = %.3f, "
+                  "max |sum G| = %.1e, max |sum G (x) X - 1| = %.1e\n",
+                  size, limited, m, worst_ratio, worst_sum, worst_moment);
+      if (size < 1)
+        EXPECT_EQ(limited, 0u);
+      else
+        EXPECT_EQ(limited, m);
+      EXPECT_LE(worst_ratio, 4. * (1 + 1e-12));
+      EXPECT_LT(worst_sum, 1e-10);
+      EXPECT_LT(worst_moment, 1e-10);
+    }
+}
+
 // After rows of A and G change in place (bonds broke), the partial refresh recomputes only what
 // they reach and must give the force and residual energy of a full evaluation on the new rows,
 // to the last bit (both use the same per-row sums). Every form with a correction vector or the
