@@ -539,7 +539,7 @@ TEST(KccRegularization, EnergyPerCrackAreaIsNearlyIndependentOfTheSize)
 
 TEST(KccStepSize, TensileSofteningDoesNotDependOnTheStep)
 {
-  // Decision 15 of doc/materials/kcc.md: a step that goes far past the tensile peak is split
+  // Decision 12 of doc/materials/kcc.md: a step that goes far past the tensile peak is split
   // into sub-increments. Regularized softening (w = 88 mm, h = 2 mm, the fragmentation ring's
   // set-up) to a strain of 4e-3, 40 times the peak strain: increments of 1e-4 ... 1e-3 (the
   // ring's eps_dot dt at 300 and 1000 1/s) give the stress and the work of increments of 2e-6
