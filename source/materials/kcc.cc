@@ -812,13 +812,13 @@ namespace shard::materials
         // max_tension_increment f't is split into equal parts (at most max_tension_substeps),
         // each with the tension rate factor of the whole step.
         unsigned int n_sub = 1;
-        double       p_trial = 0.;
         if (tr > 0. && par_.tensile_strength > 0.)
           {
             const double ratio = m0 * std::max(e_eff, tr) / (max_tension_increment * par_.tensile_strength);
             if (ratio > 1.)
               {
-                p_trial = eos_.evaluate(-(ev - st[slot_plastic_volume]), st[slot_max_compaction]).pressure;
+                const double p_trial =
+                  eos_.evaluate(-(ev - st[slot_plastic_volume]), st[slot_max_compaction]).pressure;
                 if (p_trial < 0.)
                   n_sub = static_cast<unsigned int>(std::min(std::ceil(ratio), double(max_tension_substeps)));
               }

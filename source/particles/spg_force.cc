@@ -310,7 +310,8 @@ namespace shard::particles
     const auto limited = Utilities::MPI::sum(correction.limited_rows(), comm);
     if (limited > 0 && Utilities::MPI::this_mpi_process(comm) == 0)
       std::cerr << "shard: particles: " << limited
-                << " gradient rows keep a limited consistent correction (no entry above 4 / spacing; "
+                << " gradient rows keep a limited consistent correction (no entry above "
+                << ConsistentCorrection::max_correction_ratio << " / spacing; "
                    "doc/theory/spg_stabilization.md, \"Correction limiter\")\n";
     // Rows with broken bonds keep their plain RK gradients (doc/manual/failure.md).
     particles.rebuild_broken_rows();

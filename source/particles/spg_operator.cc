@@ -23,9 +23,6 @@ namespace shard::particles
   {
     /// Rows per task of the threaded passes (a fixed partition; each row is written by one task).
     constexpr unsigned int rows_per_task = 1024;
-    /// Largest entry of the consistent correction of a gradient row times the row's length l_I
-    /// (doc/theory/spg_stabilization.md, "Correction limiter").
-    constexpr double max_correction_ratio = 4.;
 
     /// Rewrites the columns of @p s through @p map (cloud index -> compact index).
     void
@@ -614,27 +611,22 @@ namespace shard::particles
         // largest coordinate distance in the stencil, the spacing on a lattice). Scaling the
         // row's correction keeps linear exactness (its sums vanish) and gives up part of the
         // integration constraint at that row only.
+        const auto correction = [&](const unsigned int e, const unsigned int c) {
+          const double *p = &basis_[4 * e];
+          const double *l = &lambda[3 * g.columns[e]];
+          return volume_[i] * (l[c] - p[0] * mu[c] - p[1] * mu[3 + c] - p[2] * mu[6 + c] - p[3] * mu[9 + c]);
+        };
         double largest = 0;
         for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
-          {
-            const double *p = &basis_[4 * e];
-            const double *l = &lambda[3 * g.columns[e]];
-            for (unsigned int c = 0; c < 3; ++c)
-              largest = std::max(largest, std::abs(volume_[i] * (l[c] - p[0] * mu[c] - p[1] * mu[3 + c] -
-                                                                  p[2] * mu[6 + c] - p[3] * mu[9 + c])));
-          }
+          for (unsigned int c = 0; c < 3; ++c)
+            largest = std::max(largest, std::abs(correction(e, c)));
         const double bound = max_correction_ratio / row_length_[i];
         const double scale = largest > bound ? bound / largest : 1.;
         if (scale < 1.)
           ++limited_rows_;
         for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
-          {
-            const double *p = &basis_[4 * e];
-            const double *l = &lambda[3 * g.columns[e]];
-            for (unsigned int c = 0; c < 3; ++c)
-              out[3 * e + c] += scale * volume_[i] *
-                                (l[c] - p[0] * mu[c] - p[1] * mu[3 + c] - p[2] * mu[6 + c] - p[3] * mu[9 + c]);
-          }
+          for (unsigned int c = 0; c < 3; ++c)
+            out[3 * e + c] += scale * correction(e, c);
       }
     return out;
   }

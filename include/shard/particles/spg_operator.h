@@ -390,9 +390,12 @@ namespace shard::particles
     std::vector<double>
     corrected_gradients(const double *lambda) const;
 
-    /// Rows whose correction the last corrected_gradients() scaled down: no entry of a row's
-    /// correction exceeds 4 / l_I, l_I the row's largest coordinate distance in its stencil
-    /// (doc/theory/spg_stabilization.md, "Correction limiter").
+    /// Largest entry of a row's correction times l_I, the row's largest coordinate distance in
+    /// its stencil (doc/theory/spg_stabilization.md, "Correction limiter").
+    static constexpr double max_correction_ratio = 4.;
+
+    /// Rows whose correction the last corrected_gradients() scaled down so that no entry
+    /// exceeds max_correction_ratio / l_I.
     unsigned int
     limited_rows() const
     {
