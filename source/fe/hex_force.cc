@@ -120,6 +120,7 @@ namespace shard::fe
     for (unsigned int g = 0; g < groups_.size(); ++g)
       groups_[g].material = &library.get(material_names[g]);
     element_of_cell_.assign(discretization.triangulation().n_active_cells(), -1);
+    std::vector<double> centroid(3 * n, 0.); // reference centroids, for fields of the position
     for (unsigned int e = 0; e < n; ++e)
       {
         element_of_cell_[raw[e].cell] = static_cast<int>(e);
@@ -130,7 +131,10 @@ namespace shard::fe
         double x[8][3], B[8][3];
         for (unsigned int a = 0; a < 8; ++a)
           for (unsigned int i = 0; i < 3; ++i)
-            x[a][i] = X.local_element(raw[e].nodes[a] + i);
+            {
+              x[a][i] = X.local_element(raw[e].nodes[a] + i);
+              centroid[3 * e + i] += x[a][i] / 8.;
+            }
         volume0_[e] = hex_volume_gradient(x, B);
         AssertThrow(volume0_[e] > 0, ExcMessage("inverted element in the input mesh (body " +
                                                 bodies[raw[e].body].name + ")"));
@@ -144,6 +148,7 @@ namespace shard::fe
         grp.n_slots    = grp.slot_names.size();
         grp.state.assign(static_cast<std::size_t>(grp.end - grp.begin) * grp.n_slots, 0.);
         grp.material->initialize_state(grp.end - grp.begin, grp.state.data());
+        grp.material->set_position_fields(grp.end - grp.begin, centroid.data() + 3 * grp.begin, grp.state.data());
       }
     build_batches();
   }

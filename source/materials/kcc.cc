@@ -207,6 +207,19 @@ namespace shard::materials
                       "Scaled damage delta at which the slot 'failed' becomes 1 (an indicator; the "
                       "stress keeps following the residual surface). 0: never. Unit: 1. Range: 0, or "
                       "1 to 2.", Double());
+    prm.add_parameter("strength modulus", par_.strength_modulus,
+                      "Weibull modulus m of a random strength field (the flaws, doc/materials/kcc.md decision "
+                      "13): every surface of a point is scaled by a factor s of mean 1 (coefficient of "
+                      "variation 0.149 for m = 8), constant on the cells of a grid of size 'strength cell "
+                      "size' fixed in the reference configuration, so that a uniformly stretched body breaks "
+                      "at its weak places first. 0: uniform strength. Unit: 1. Range: 0, or 2 to 100.",
+                      Double());
+    prm.add_parameter("strength cell size", par_.strength_cell_size,
+                      "Size l of the cells of the strength field (the flaw spacing; independent of the mesh "
+                      "and particle spacing). Unit: m. Range: > 0.", Double());
+    prm.add_parameter("strength seed", par_.strength_seed,
+                      "Selects the realization of the strength field (the same on every rank and after a "
+                      "restart). Unit: 1. Range: >= 0.", dealii::Patterns::Integer(0));
   }
 
   KccParameters
@@ -340,6 +353,11 @@ namespace shard::materials
       fail("shear modulus", keys_.shear_modulus, "must be > 0 or 'auto'. Unit: Pa");
     if (!(p.edrop >= 0.))
       fail("edrop", number_to_string(p.edrop), "must be >= 0. Unit: 1");
+    if (!(p.strength_modulus == 0. || (p.strength_modulus >= 2. && p.strength_modulus <= 100.)))
+      fail("strength modulus", number_to_string(p.strength_modulus),
+           "must be 0 (uniform strength) or lie in [2, 100]. Unit: 1");
+    if (!(p.strength_cell_size > 0.) || !std::isfinite(p.strength_cell_size))
+      fail("strength cell size", number_to_string(p.strength_cell_size), "must be > 0. Unit: m");
 
     if (!in.lambda.empty())
       {
@@ -504,6 +522,7 @@ namespace shard::materials
   {
     eos_.set_table(par_.eos_strain, par_.eos_pressure, par_.eos_modulus);
     dif_curves_ = default_dif_curves(par_.compressive_strength);
+    field_      = StrengthField(par_.strength_modulus, par_.strength_cell_size, par_.strength_seed);
   }
 
   void
@@ -546,6 +565,9 @@ namespace shard::materials
     set("tension DIF cap", p.dif_t_cap);
     set("localization width", p.localization_width);
     set("failure scaled damage", p.failure_scaled_damage);
+    set("strength modulus", p.strength_modulus);
+    set("strength cell size", p.strength_cell_size);
+    set("strength seed", p.strength_seed);
     s << "    # derived: f'c on the maximum surface = " << p.fc << " Pa, f'yc = " << p.fyc
       << " Pa, psi_uc = " << p.psi_uc << ", psi_bc = " << p.psi_bc << ", lambda_m = " << p.lambda_m
       << ", initial K = " << p.eos_modulus.front() << " Pa, G = " << shear_modulus(p.eos_modulus.front())
@@ -586,7 +608,8 @@ namespace shard::materials
   KccConcrete::state_slot_names() const
   {
     return {slot::plastic_strain,      slot::failed,    "damage lambda",         "scaled damage",
-            "plastic volumetric strain", "max compaction", "effective strain rate", "rate factor"};
+            "plastic volumetric strain", "max compaction", "effective strain rate", "rate factor",
+            "strength factor"};
   }
 
   void
@@ -594,7 +617,14 @@ namespace shard::materials
   {
     std::fill(state, state + static_cast<std::size_t>(n) * n_slots, 0.);
     for (unsigned int i = 0; i < n; ++i)
-      state[i * n_slots + slot_rate_factor] = 1.;
+      state[i * n_slots + slot_rate_factor] = state[i * n_slots + slot_strength] = 1.;
+  }
+
+  void
+  KccConcrete::set_position_fields(const unsigned int n, const double *positions, double *state) const
+  {
+    for (unsigned int i = 0; i < n; ++i)
+      state[i * n_slots + slot_strength] = field_.factor(positions + 3 * i);
   }
 
   // --------------------------------------------------------------------------------------
@@ -866,8 +896,10 @@ namespace shard::materials
     internal::trial_deviator(sig, d, 2. * g, s);
 
     // 3. Rate factor, fixed within the step: tension curve when the trial pressure is < 0.
-    const double rf      = rate_factor > 0. ? rate_factor : dynamic_increase_factor(rate, p < 0.);
-    st[slot_rate_factor] = rf;
+    // The strength factor of the point (decision 13) scales the surfaces as the rate factor does.
+    const double dif     = rate_factor > 0. ? rate_factor : dynamic_increase_factor(rate, p < 0.);
+    st[slot_rate_factor] = dif;
+    const double rf      = dif * st[slot_strength];
     const double ph      = p / rf;
 
     // 4-5. Trial check: r' lies in [psi, 1], so q <= psi Y_c is elastic without the angle.

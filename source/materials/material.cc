@@ -25,6 +25,10 @@ namespace shard::materials
   }
 
   void
+  Material::set_position_fields(unsigned int, const double *, double *) const
+  {}
+
+  void
   Material::write_resolved_parameters(std::ostream &) const
   {}
 } // namespace shard::materials

@@ -260,6 +260,12 @@ namespace shard::output
     scalar_field("plastic_strain",
                  [&](const unsigned int i) { return particles_->state_value(i, materials::slot::plastic_strain); });
     scalar_field("failed", [&](const unsigned int i) { return particles_->state_value(i, materials::slot::failed); });
+    scalar_field("scaled_damage", [&](const unsigned int i) { return particles_->state_value(i, "scaled damage"); });
+    scalar_field("strength_factor", [&](const unsigned int i) {
+      return particles_->material(i).state_slot("strength factor") < 0 ? 1. :
+                                                                         particles_->state_value(i, "strength factor");
+    });
+    scalar_field("intact_bonds", [&](const unsigned int i) { return double(set.intact_bonds(i)); });
     scalar_field("material", [&](const unsigned int i) { return double(set.body(i)); });
     scalar_field("volume", [&](const unsigned int i) { return set.volume(i); });
     scalar_field("interface", [&](const unsigned int i) { return set.is_interface(i) ? 1. : 0.; });
@@ -276,7 +282,8 @@ namespace shard::output
              "<PDataArray type=\"Float64\" Name=\"displacement\" NumberOfComponents=\"3\"/>\n"
              "<PDataArray type=\"Float64\" Name=\"velocity\" NumberOfComponents=\"3\"/>\n";
         for (const char *name : {"stress_xx", "stress_yy", "stress_zz", "stress_yz", "stress_xz", "stress_xy",
-                                 "von_mises_stress", "plastic_strain", "failed", "material", "volume", "interface", "mpi_rank"})
+                                 "von_mises_stress", "plastic_strain", "failed", "scaled_damage", "strength_factor",
+                                 "intact_bonds", "material", "volume", "interface", "mpi_rank"})
           p << "<PDataArray type=\"Float64\" Name=\"" << name << "\"/>\n";
         p << "</PPointData>\n";
         for (unsigned int r = 0; r < n_ranks; ++r)

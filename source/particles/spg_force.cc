@@ -162,6 +162,9 @@ namespace shard::particles
         g.n_slots    = g.slot_names.size();
         g.state.assign(std::size_t(g.end - g.begin) * g.n_slots, 0.);
         g.material->initialize_state(g.end - g.begin, g.state.data());
+        for (unsigned int i = g.begin; i < g.end; ++i)
+          g.material->set_position_fields(1, particles.position(i).data(),
+                                          g.state.data() + std::size_t(i - g.begin) * g.n_slots);
       }
     F_.assign(9 * n, 0.);
     for (unsigned int i = 0; i < n; ++i)
@@ -343,7 +346,10 @@ namespace shard::particles
     evaluated_ = false;
     std::copy(stress, stress + 6, &stress_[6 * i]);
     auto &g = groups_[group_of_[i]];
-    std::copy(history, history + g.n_slots, g.state.data() + std::size_t(i - g.begin) * g.n_slots);
+    double *state = g.state.data() + std::size_t(i - g.begin) * g.n_slots;
+    std::copy(history, history + g.n_slots, state);
+    // Fields of the reference position are the particle's own, not an average of its sources.
+    g.material->set_position_fields(1, particles_->position(i).data(), state);
     q_[i] = q;
   }
 

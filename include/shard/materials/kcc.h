@@ -14,6 +14,7 @@
 
 #include <shard/materials/compaction_eos.h>
 #include <shard/materials/material.h>
+#include <shard/materials/strength_field.h>
 
 #include <array>
 #include <iosfwd>
@@ -62,6 +63,12 @@ namespace shard::materials
     double localization_width = 0.;
     /// Scaled damage at which slot "failed" becomes 1 (0: never).
     double failure_scaled_damage = 0.;
+    /// Weibull modulus of the strength field (0: uniform strength), see StrengthField.
+    double strength_modulus = 0.;
+    /// Cell size of the strength field (m).
+    double strength_cell_size = 0.01;
+    /// Seed of the strength field.
+    unsigned int strength_seed = 1;
 
     // Derived in prepare():
     /// f'c at which the maximum surface passes through unconfined compression (Pa).
@@ -88,7 +95,8 @@ namespace shard::materials
    * damage above `failure scaled damage`, an indicator only), "damage lambda", "scaled damage"
    * (delta: 0 intact, 1 at the peak, 2 residual), "plastic volumetric strain" (expansion
    * positive), "max compaction" (EOS x_max), "effective strain rate" (1/s), "rate factor"
-   * (r_f of the last step).
+   * (r_f of the last step), "strength factor" (s of the strength field at the point's reference
+   * position, 1 without a field: every surface is scaled by r_f s).
    */
   class KccConcrete : public Material
   {
@@ -104,6 +112,7 @@ namespace shard::materials
       slot_max_compaction,
       slot_strain_rate,
       slot_rate_factor,
+      slot_strength,
       n_slots
     };
 
@@ -141,13 +150,24 @@ namespace shard::materials
     std::array<double, 2>
     elastic_moduli() const override;
 
-    /// The eight slot names, see the class documentation.
+    /// The nine slot names, see the class documentation.
     std::vector<std::string>
     state_slot_names() const override;
 
-    /// Zero history.
+    /// Zero history, rate factor and strength factor 1.
     void
     initialize_state(unsigned int n, double *state) const override;
+
+    /// Writes the strength factor of the strength field at each reference position.
+    void
+    set_position_fields(unsigned int n, const double *positions, double *state) const override;
+
+    /// The strength field of the resolved parameters.
+    const StrengthField &
+    strength_field() const
+    {
+      return field_;
+    }
 
     /**
      * @brief Stress update of a batch (design/materials.md section 5, with the decisions of
@@ -320,5 +340,6 @@ namespace shard::materials
     Keys          keys_;
     CompactionEos eos_;
     DifCurves     dif_curves_{};
+    StrengthField field_;
   };
 } // namespace shard::materials

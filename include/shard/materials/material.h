@@ -135,6 +135,17 @@ namespace shard::materials
     initialize_state(unsigned int n, double *state) const;
 
     /**
+     * @brief Writes the history slots that are fields of the reference position (K&C's
+     * strength factor) for @p n points; the callers apply it after initialize_state() and
+     * after every history transfer (conversion, restart), so that such a slot never mixes.
+     * The default writes nothing.
+     * @param positions reference positions, 3 per point (m)
+     * @param state the points' history, n_state_slots() per point
+     */
+    virtual void
+    set_position_fields(unsigned int n, const double *positions, double *state) const;
+
+    /**
      * @brief Updates stress and history of a batch of points (one virtual call per batch).
      */
     virtual void

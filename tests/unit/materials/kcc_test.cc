@@ -559,7 +559,9 @@ TEST(KccStepSize, TensileSofteningDoesNotDependOnTheStep)
       std::printf("uniaxial stress, increment %g: stress ratio %.4f work ratio %.4f\n", inc,
                   coarse.final_stress / fine.final_stress, coarse.work / fine.work);
       if (inc <= 1e-4) // the trapezoid rule of drive() over 4 or 8 steps is cruder than the model
-        EXPECT_NEAR(coarse.work / fine.work, 1., 0.05) << "increment " << inc;
+        {
+          EXPECT_NEAR(coarse.work / fine.work, 1., 0.05) << "increment " << inc;
+        }
     }
 
   // Uniaxial strain (the first microseconds of an expanding ring): the same with eps_yy = 0.
@@ -586,3 +588,101 @@ TEST(KccStepSize, TensileSofteningDoesNotDependOnTheStep)
 }
 
 INSTANTIATE_TEST_SUITE_P(FcMPa, KccStrength, ::testing::Values(45.6, 48.));
+
+// Decision 13 of doc/materials/kcc.md: the strength field. The factors of many cells follow the
+// mean-one Weibull distribution (mean, coefficient of variation and the whole CDF against the
+// closed forms), are constant within a cell, change with the seed, and scale the peaks.
+TEST(KccStrengthField, FactorsFollowTheWeibullClosedForm)
+{
+  using shard::materials::StrengthField;
+  const double       m = 8., l = 0.004;
+  const StrengthField field(m, l, 7);
+  const int          n = 40; // 64 000 cells
+  std::vector<double> s;
+  for (int i = -n / 2; i < n / 2; ++i)
+    for (int j = -n / 2; j < n / 2; ++j)
+      for (int k = 0; k < n; ++k)
+        {
+          // the centre of cell (i, j, k) of the shifted grid
+          const double x[3] = {(i + 0.5 - StrengthField::grid_shift) * l, (j + 0.5 - StrengthField::grid_shift) * l,
+                               (k + 0.5 - StrengthField::grid_shift) * l};
+          s.push_back(field.factor(x));
+          // any other point of the same cell has the same factor
+          const double y[3] = {x[0] + 0.45 * l, x[1] - 0.45 * l, x[2] + 0.3 * l};
+          ASSERT_EQ(field.factor(y), s.back());
+        }
+  const double N = s.size();
+  double       mean = 0., var = 0.;
+  for (const double v : s)
+    mean += v / N;
+  for (const double v : s)
+    var += (v - mean) * (v - mean) / (N - 1.);
+  const double cv = StrengthField::coefficient_of_variation(m);
+  EXPECT_NEAR(cv, 0.1486, 5e-4); // sqrt(Gamma(1.25) / Gamma(1.125)^2 - 1)
+  // standard errors: cv / sqrt(N) = 5.9e-4 for the mean; about 4e-4 for the cv
+  EXPECT_NEAR(mean, 1., 3e-3);
+  EXPECT_NEAR(std::sqrt(var) / mean, cv, 3e-3);
+  // Kolmogorov-Smirnov against F(s) = 1 - exp(-(s Gamma(1 + 1/m))^m): the 1 % critical
+  // value of the largest distance is 1.63 / sqrt(N) = 0.0064.
+  std::sort(s.begin(), s.end());
+  const double g   = std::tgamma(1. + 1. / m);
+  double       ks  = 0.;
+  for (std::size_t i = 0; i < s.size(); ++i)
+    {
+      const double F = 1. - std::exp(-std::pow(s[i] * g, m));
+      ks             = std::max({ks, std::abs(F - double(i) / N), std::abs(F - double(i + 1) / N)});
+    }
+  EXPECT_LT(ks, 1.63 / std::sqrt(N));
+  // Another seed is another realization: about as many factors change as a fresh draw gives.
+  const StrengthField other(m, l, 8);
+  unsigned int        same = 0;
+  for (int i = 0; i < 1000; ++i)
+    {
+      const double x[3] = {0.5 * l, 0.5 * l, (i + 0.5) * l};
+      same += field.factor(x) == other.factor(x);
+    }
+  EXPECT_EQ(same, 0u);
+  // Inactive: 1 everywhere.
+  const double x0[3] = {0.1, 0.2, 0.3};
+  EXPECT_EQ(StrengthField().factor(x0), 1.);
+  EXPECT_EQ(StrengthField(0., l, 7).factor(x0), 1.);
+}
+
+TEST(KccStrengthField, TheFactorScalesThePeaksAndIsSetFromThePosition)
+{
+  // K&C with a field: set_position_fields writes the factor of the point's reference position;
+  // uniaxial tension and compression then peak at s f't and s f'c (rate effects off).
+  KccParameters in      = make_model(48. * MPa).parameters();
+  in.strength_modulus   = 8.;
+  in.strength_cell_size = 0.01;
+  in.strength_seed      = 3;
+  KccConcrete m;
+  m.set_parameters(in);
+  ASSERT_TRUE(m.strength_field().active());
+  const int slot = m.state_slot("strength factor");
+  ASSERT_EQ(slot, int(KccConcrete::slot_strength));
+  // a weak and a strong cell among the first ones along x
+  double weak[3] = {0, 0, 0}, strong[3] = {0, 0, 0}, s_weak = 10., s_strong = 0.;
+  for (int i = 0; i < 200; ++i)
+    {
+      const double x[3] = {(i + 0.5) * 0.01, 0., 0.};
+      const double s    = m.strength_field().factor(x);
+      if (s < s_weak)
+        s_weak = s, weak[0] = x[0];
+      if (s > s_strong)
+        s_strong = s, strong[0] = x[0];
+    }
+  ASSERT_LT(s_weak, 0.85);
+  ASSERT_GT(s_strong, 1.15);
+  for (const auto &[x, s] : {std::pair{weak, s_weak}, std::pair{strong, s_strong}})
+    {
+      Point p = fresh_point(m);
+      EXPECT_EQ(p.state[slot], 1.);
+      m.set_position_fields(1, x, p.state.data());
+      EXPECT_EQ(p.state[slot], s);
+      const PathResult ut = drive(m, p, 2e-3, 1e-7, Control::lateral, 0.);
+      EXPECT_NEAR(ut.peak / (s * m.parameters().tensile_strength), 1., 3e-3) << "factor " << s;
+      const PathResult uc = drive(m, p, -0.012, 2e-6, Control::lateral, 0.);
+      EXPECT_NEAR(uc.peak / (s * m.parameters().compressive_strength), 1., 2e-3) << "factor " << s;
+    }
+}
