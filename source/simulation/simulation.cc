@@ -337,7 +337,7 @@ namespace shard
             history_ << "time,step,dt,kinetic_energy,internal_energy,hourglass_energy,external_work,boundary_work,"
                         "filter_work,conversion_energy,bond_energy,energy_error,momentum_x,momentum_y,momentum_z,"
                         "converted_elements,broken_bonds,free_particles,contact_energy,friction_energy,"
-                        "contact_wall_force,contact_stored_energy,contact_lost_energy";
+                        "contact_wall_force,contact_stored_energy,contact_lost_energy,contact_damping_energy";
             for (const auto &name : quantities_.names())
               history_ << "," << name;
             history_ << "\n" << pending_rows_;
@@ -639,14 +639,14 @@ namespace shard
     // The hourglass column holds the FE hourglass work plus the particle stabilization energy.
     // The internal energy includes the elastic energy changed by conversions; the conversion
     // energy (that change plus the jump of the stabilization energy) counts as a source.
-    const double local[13] = {balance_.kinetic,       internal_energy_ + conversion_elastic_,
+    const double local[14] = {balance_.kinetic,       internal_energy_ + conversion_elastic_,
                               hourglass_energy_ + stabilization_energy_,
                               balance_.external_work, balance_.boundary_work, balance_.momentum[0],
                               balance_.momentum[1],   balance_.momentum[2],   filter_work_, bond_energy_,
                               contact_.energy(),      contact_.friction_energy(),
-                              contact_.stored_energy()};
-    double       g[13];
-    Utilities::MPI::sum(ArrayView<const double>(local, 13), comm_, ArrayView<double>(g, 13));
+                              contact_.stored_energy(), contact_.damping_energy()};
+    double       g[14];
+    Utilities::MPI::sum(ArrayView<const double>(local, 14), comm_, ArrayView<double>(g, 14));
     // The contact energy (stored in the penalty springs plus dissipated by friction) counts
     // as internal energy.
     const double kinetic = g[0], internal = g[1] + g[2] + g[10], external = g[3], boundary = g[4], filter = g[8];
@@ -679,10 +679,11 @@ namespace shard
         char        row[1024];
         std::snprintf(row, sizeof(row),
                       "%.16e,%u,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e,%llu,"
-                      "%llu,%llu,%.16e,%.16e,%.16e,%.16e,%.16e",
+                      "%llu,%llu,%.16e,%.16e,%.16e,%.16e,%.16e,%.16e",
                       t_, step_, dt_next_, kinetic, internal, g[2], external, boundary, filter, conversion_energy_,
                       bond, energy_error_, g[5], g[6], g[7], conversion_.n_converted(), bonds_.n_broken(),
-                      bonds_.n_free(), g[10], g[11], contact_.wall_force(), g[12], g[10] - g[11] - g[12]);
+                      bonds_.n_free(), g[10], g[11], contact_.wall_force(), g[12], g[10] - g[11] - g[12] - g[13],
+                      g[13]);
         line = row;
         for (const double x : q)
           {
@@ -709,7 +710,8 @@ namespace shard
         {"external_work", external}, {"boundary_work", boundary}, {"filter_work", filter},
         {"conversion_energy", conversion_energy_}, {"bond_energy", bond}, {"energy_error", energy_error_},
         {"momentum_x", g[5]}, {"momentum_y", g[6]}, {"momentum_z", g[7]}, {"contact_energy", g[10]},
-        {"friction_energy", g[11]}, {"contact_stored_energy", g[12]}, {"dt", dt_next_}};
+        {"friction_energy", g[11]}, {"contact_stored_energy", g[12]}, {"contact_damping_energy", g[13]},
+        {"dt", dt_next_}};
       for (const auto &[name, value] : terms)
         if (!std::isfinite(value))
           throw fe::Instability("step " + std::to_string(step_) + ", t = " + g6(t_) + " s: " + name + " is " +

@@ -2,7 +2,8 @@
 /**
  * @file contact.h
  * @brief Penalty contact: FE surfaces against nodes and particles, particle (debris)
- *        self-contact, rigid walls; optional Coulomb friction. Subsection `H - Contact`.
+ *        self-contact, rigid walls; optional Coulomb friction and normal damping. Subsection
+ *        `H - Contact`.
  * @ingroup contact
  *
  * Theory, stiffness choices, time-step effect and validation: doc/manual/contact.md.
@@ -95,11 +96,11 @@ namespace shard::contact
     exchange(const mesh::Vector &d, const mesh::Vector &v);
 
     /**
-     * @brief Adds the penalty and friction forces of every contact pair to the owned entries of
+     * @brief Adds the penalty, damping and friction forces of every contact pair to the owned entries of
      * @p f; rebuilds the candidate lists when a node has moved more than its reach since the
      * last build (skin/2, more for fast nodes; doc/manual/contact.md) or the rebuild interval
      * has passed. Pairs whose bond broke since join the candidates. Accumulates the contact
-     * work and, with the step @p dt, the friction dissipation. Not collective (every rank has
+     * work and, with the step @p dt, the friction and dashpot dissipation. Not collective (every rank has
      * every position).
      */
     ContactResult
@@ -118,6 +119,14 @@ namespace shard::contact
     friction_energy() const
     {
       return friction_energy_;
+    }
+
+    /// Part of energy() dissipated by the normal contact damping, `damping ratio` (J, counted on
+    /// rank 0).
+    double
+    damping_energy() const
+    {
+      return damping_energy_;
     }
 
     /// Energy held in the penalty springs at the last evaluation, sum of k delta^2 / 2 over the
@@ -186,7 +195,7 @@ namespace shard::contact
       std::vector<double>             x_old;
       /// Step of the last build, rebuilds so far, energy of this rank, friction energy (J).
       unsigned int last_build = 0, n_rebuilds = 0;
-      double       energy = 0, friction_energy = 0;
+      double       energy = 0, friction_energy = 0, damping_energy = 0;
 
       /// One field list for writing and reading: @p io(x) for every member.
       template <typename IO>
@@ -194,7 +203,8 @@ namespace shard::contact
       serialize(IO &&io)
       {
         io(keys), io(force), io(entry_depth), io(previous_slaves), io(pairs), io(offsets), io(owned_keys);
-        io(x_old), io(last_build), io(n_rebuilds), io(energy), io(friction_energy), io(contact_normal);
+        io(x_old), io(last_build), io(n_rebuilds), io(energy), io(friction_energy), io(damping_energy);
+        io(contact_normal);
         io(penetration), io(segment);
       }
     };
@@ -229,6 +239,7 @@ namespace shard::contact
       bool        symmetric   = false;
       double      penalty     = 0.1;
       double      friction    = 0;
+      double      damping     = 0;
       std::string wall_point  = "0, 0, 0";
       std::string wall_normal = "0, 0, 1";
       // Resolved.
@@ -341,7 +352,7 @@ namespace shard::contact
     unsigned int                                          last_build_ = 0;
     bool                                                  built_      = false;
     unsigned int                                          n_rebuilds_ = 0;
-    double energy_ = 0, friction_energy_ = 0, stored_energy_ = 0, wall_force_ = 0, stable_dt_ = 1e300;
+    double energy_ = 0, friction_energy_ = 0, damping_energy_ = 0, stored_energy_ = 0, wall_force_ = 0, stable_dt_ = 1e300;
     double skin_used_ = 0;
 
     /// What a second prepare() (after a conversion) keeps of the contacts that go on, by global
