@@ -988,7 +988,7 @@ namespace shard::contact
                                                 in.damping);
                 Vec3         fvec{{fn * in.normal[0], fn * in.normal[1], fn * in.normal[2]}};
                 if (in.friction > 0)
-                  add_friction(velocity(i), in.normal, fn, in.friction, fvec);
+                  add_friction(vi, in.normal, fn, in.friction, fvec);
                 add(i, fvec, 1.);
                 wall_force_ += fn;
               }
@@ -1023,20 +1023,21 @@ namespace shard::contact
                 const double spring = k * h.overlap;
                 stored += 0.5 * spring * h.overlap;
                 double fn = spring;
+                Vec3   vr{{0, 0, 0}}; // velocity of j relative to i
+                if (in.damping > 0 || in.friction > 0)
+                  {
+                    const Vec3 vi = velocity(i), vj = velocity(j);
+                    vr            = Vec3{{vj[0] - vi[0], vj[1] - vi[1], vj[2] - vi[2]}};
+                  }
                 if (in.damping > 0)
                   {
-                    const Vec3   vi = velocity(i), vj = velocity(j);
-                    const Vec3   vr{{vj[0] - vi[0], vj[1] - vi[1], vj[2] - vi[2]}};
                     const double mi = nodes_[i].mass, mj = nodes_[j].mass;
                     fn = damped_normal(spring, k, mi + mj > 0 ? mi * mj / (mi + mj) : 0.,
                                        vr[0] * h.normal[0] + vr[1] * h.normal[1] + vr[2] * h.normal[2], in.damping);
                   }
                 Vec3 fj{{fn * h.normal[0], fn * h.normal[1], fn * h.normal[2]}};
                 if (in.friction > 0)
-                  {
-                    const Vec3 vi = velocity(i), vj = velocity(j);
-                    add_friction(Vec3{{vj[0] - vi[0], vj[1] - vi[1], vj[2] - vi[2]}}, h.normal, fn, in.friction, fj);
-                  }
+                  add_friction(vr, h.normal, fn, in.friction, fj);
                 add(j, fj, 1.);
                 add(i, fj, -1.);
               }

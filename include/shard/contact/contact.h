@@ -193,7 +193,7 @@ namespace shard::contact
       /// This rank's nodes: keys and positions of the last step (3 per node).
       std::vector<unsigned long long> owned_keys;
       std::vector<double>             x_old;
-      /// Step of the last build, rebuilds so far, energy of this rank, friction energy (J).
+      /// Step of the last build, rebuilds so far, energy of this rank, friction and dashpot energy (J).
       unsigned int last_build = 0, n_rebuilds = 0;
       double       energy = 0, friction_energy = 0, damping_energy = 0;
 
