@@ -26,6 +26,11 @@ Definitions of one run (slab 178 mm thick between z = -0.178 and 0, shot along -
              largest distance from the shot line;
   fragments  from fragments.csv at the last output: count, the slab (heaviest), the debris
              (everything but the slab and the projectile), its largest piece and fastest speed;
+             from summary.json the dust fraction (debris of fewer than 'K - Output/dust
+             particles' particles over the debris mass);
+  crater / scab mass  the debris (fragment_statistics.csv, debris = 1) whose origin (centre of
+             mass in the reference configuration, z0) lies in the front half (z0 > -0.089) or
+             the rear half of the slab: the material lost on each side;
   tunnel force  the mean resisting force (below) with the tip 2 a to 100 mm deep, the
              cavity-expansion estimate there for the run's f'c and rho, and their ratio.
 
@@ -83,6 +88,23 @@ def face_damage(out_dir, z_face, spacing):
                 area += vol[i] / (0.5 * spacing)
                 rmax = max(rmax, math.hypot(X[0], X[1]))
     return 2 * math.sqrt(area / math.pi), rmax
+
+
+def lost_mass(out_dir):
+    """(crater mass, scab mass): debris mass with its origin in the front or rear half (kg)."""
+    path = os.path.join(out_dir, "fragment_statistics.csv")
+    if not os.path.exists(path):
+        return None, None
+    front = rear = 0.0
+    with open(path) as f:
+        for r in csv.DictReader(f):
+            if r["debris"] != "1" or "z0" not in r:
+                continue
+            if float(r["z0"]) > 0.5 * REAR:
+                front += float(r["mass"])
+            else:
+                rear += float(r["mass"])
+    return front, rear
 
 
 def parameter(out_dir, path):
@@ -150,6 +172,7 @@ def run_report(out_dir):
     whole = [r for r in frags[1:] if int(r["particles"]) == 0 and abs(float(r["mass"]) - MASS) <= 0.05 * MASS]
     projectile = whole[0] if whole else min(frags[:3], key=lambda r: float(r["vz"]))
     debris = [r for r in frags if r is not slab and r is not projectile]
+    crater_mass, scab_mass = lost_mass(out_dir)
     status = summary.get("status", "completed")
     residual = v if perforated else (0.0 if status == "completed" else None)
     return {
@@ -160,6 +183,8 @@ def run_report(out_dir):
         "scab_diameter": scab, "scab_radius_max": scab_r,
         "n_fragments": len(frags), "debris_mass": sum(float(r["mass"]) for r in debris),
         "largest_debris_mass": max([float(r["mass"]) for r in debris] + [0.0]),
+        "dust_fraction": summary.get("fragments", {}).get("dust_fraction"),
+        "crater_mass": crater_mass, "scab_mass": scab_mass,
         "fastest_debris_speed": max([math.sqrt(sum(float(r[c]) ** 2 for c in ("vx", "vy", "vz"))) for r in debris] + [0.0]),
         "energy_error": summary.get("energy_error"), "max_abs_energy_error": summary.get("max_abs_energy_error"),
         "steps": summary.get("steps"), "wall_time": summary.get("wall_time_s"),
@@ -213,6 +238,45 @@ def recht_ipson(vs, vr):
     return best
 
 
+def debris_panels(axm, axv, rows):
+    """Debris of the sweep: masses (crater, scab, largest fragment) with the dust fraction, and
+    the fastest fragment against the striking velocity (a fragment faster than the striking
+    velocity is above the dotted line)."""
+    def col(name, scale=1.0):
+        return [(float(r["striking_velocity"]), float(r[name]) * scale) for r in rows
+                if r.get(name) not in (None, "", "None")]
+    for name, label, marker in (("debris_mass", "debris", "o"), ("crater_mass", "crater (front half)", "v"),
+                                ("scab_mass", "scab (rear half)", "^"), ("largest_debris_mass", "largest fragment", "s")):
+        pts = col(name, 1e3)
+        if pts:
+            axm.plot(*zip(*pts), marker + "-", label=label)
+    axm.set_yscale("log")
+    axm.set_xlabel("striking velocity (m/s)")
+    axm.set_ylabel("mass (g)")
+    axm.set_title("debris by origin; dust fraction (right axis)")
+    axm.grid(alpha=0.3)
+    dust = col("dust_fraction")
+    if dust:
+        twin = axm.twinx()
+        twin.plot(*zip(*dust), "x--", color="k", label="dust fraction")
+        twin.set_ylim(0, 1.05)
+        twin.set_ylabel("dust mass / debris mass")
+        twin.legend(fontsize=8, loc="lower right")
+    axm.legend(fontsize=8, loc="upper left")
+    fast = col("fastest_debris_speed")
+    if fast:
+        axv.plot(*zip(*fast), "o-", color="tab:red", label="fastest debris fragment")
+        top = max(max(v for _, v in fast), max(float(r["striking_velocity"]) for r in rows)) * 1.1
+        axv.plot([0, top], [0, top], ":", color="grey", label="striking velocity")
+        axv.set_xlim(0, max(float(r["striking_velocity"]) for r in rows) * 1.1)
+        axv.set_ylim(0, top)
+    axv.set_xlabel("striking velocity (m/s)")
+    axv.set_ylabel("speed (m/s)")
+    axv.set_title("fastest debris")
+    axv.legend(fontsize=8, loc="upper left")
+    axv.grid(alpha=0.3)
+
+
 def sweep(csv_path, png, tests):
     with open(csv_path) as f:
         rows = [r for r in csv.DictReader(f) if r["residual_velocity"] not in ("", "None")]
@@ -223,7 +287,8 @@ def sweep(csv_path, png, tests):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(6, 4.5))
+    fig, (ax, axm, axv) = plt.subplots(1, 3, figsize=(16, 4.5))
+    debris_panels(axm, axv, rows)
     xs = [vbl + (max(vs) * 1.05 - vbl) * i / 200 for i in range(201)]
     ax.plot([0, vbl] + xs, [0, 0] + [a * (x ** p - vbl ** p) ** (1 / p) for x in xs], "-", color="tab:blue",
             label=f"Recht-Ipson fit: $v_{{bl}}$ = {vbl:.0f} m/s, a = {a:.2f}, p = {p:.2f}")

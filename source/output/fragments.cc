@@ -335,15 +335,15 @@ namespace shard::output
       }
 
     // Sums per label on this rank, then over ranks (rank order), sorted by label: nodes,
-    // particles, m, m x (3), m v (3), ke; the body (smallest index); the mass moments.
+    // particles, m, m x (3), m v (3), ke, m X (3); the body (smallest index); the mass moments.
     const auto &X = discretization_->reference_positions();
     struct Sums
     {
-      std::array<double, 10> s{};
+      std::array<double, 13> s{};
       double                 body = std::numeric_limits<double>::max();
       MassMoments            moments;
     };
-    constexpr unsigned int             record = 1 + 10 + 1 + MassMoments::n_values; // id first
+    constexpr unsigned int             record = 1 + 13 + 1 + MassMoments::n_values; // id first
     std::map<unsigned long long, Sums> local;
     for (unsigned int j = 0; j < n; j += 3)
       {
@@ -360,6 +360,7 @@ namespace shard::output
             s[3 + c] += m * x[c];
             s[6 + c] += m * v.local_element(j + c);
             s[9] += 0.5 * m * v.local_element(j + c) * v.local_element(j + c);
+            s[10 + c] += m * X.local_element(j + c);
           }
         sums.body = std::min(sums.body, static_cast<double>(body_[j / 3]));
         sums.moments.add(x, m, volume_[j / 3]);
@@ -377,10 +378,10 @@ namespace shard::output
       for (std::size_t k = 0; k < part.size(); k += record)
         {
           auto &sums = total[static_cast<unsigned long long>(part[k])];
-          for (unsigned int c = 0; c < 10; ++c)
+          for (unsigned int c = 0; c < 13; ++c)
             sums.s[c] += part[k + 1 + c];
-          sums.body = std::min(sums.body, part[k + 11]);
-          sums.moments.merge(MassMoments::unpack(&part[k + 12]));
+          sums.body = std::min(sums.body, part[k + 14]);
+          sums.moments.merge(MassMoments::unpack(&part[k + 15]));
         }
     std::vector<Fragment> out;
     for (const auto &[id, sums] : total)
@@ -395,6 +396,7 @@ namespace shard::output
           {
             f.centre[c]   = s[2] > 0 ? s[3 + c] / s[2] : 0.;
             f.velocity[c] = s[2] > 0 ? s[6 + c] / s[2] : 0.;
+            f.origin[c]   = s[2] > 0 ? s[10 + c] / s[2] : 0.;
           }
         f.kinetic_energy          = s[9];
         f.body                    = static_cast<unsigned int>(sums.body);

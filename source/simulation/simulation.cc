@@ -574,7 +574,7 @@ namespace shard
           total += f.mass;
         std::ofstream out(output_.directory() + "/fragment_statistics.csv");
         out << "time,rank_by_mass,fragment,nodes,particles,mass,cumulative_mass_fraction,speed,kinetic_energy,"
-               "body,volume,equivalent_diameter,aspect_ratio,debris,dust,cone_angle\n";
+               "body,volume,equivalent_diameter,aspect_ratio,debris,dust,cone_angle,x0,y0,z0\n";
         double cumulative = 0;
         char   row[512], shape[256];
         for (std::size_t k = 0; k < sorted.size(); ++k)
@@ -584,8 +584,9 @@ namespace shard
             std::snprintf(row, sizeof(row), "%.10e,%zu,%llu,%llu,%llu,%.16e,%.16e,%.10e,%.10e,", last_fragments_time_,
                           k + 1, f.id, f.nodes, f.particles, f.mass, cumulative / total,
                           std::hypot(f.velocity[0], f.velocity[1], f.velocity[2]), f.kinetic_energy);
-            std::snprintf(shape, sizeof(shape), ",%.16e,%.16e,%.16e,%d,%d,%.16e\n", f.volume, f.equivalent_diameter,
-                          f.aspect_ratio, int(f.debris), int(f.dust), f.cone_angle);
+            std::snprintf(shape, sizeof(shape), ",%.16e,%.16e,%.16e,%d,%d,%.16e,%.16e,%.16e,%.16e\n", f.volume,
+                          f.equivalent_diameter, f.aspect_ratio, int(f.debris), int(f.dust), f.cone_angle,
+                          f.origin[0], f.origin[1], f.origin[2]);
             out << row << discretization_.bodies()[f.body].name << shape;
           }
       }

@@ -102,6 +102,9 @@ namespace shard::output
     /// Mass (kg), centre of mass (m), velocity = momentum / mass (m/s), kinetic energy (J).
     double                mass = 0;
     std::array<double, 3> centre{}, velocity{};
+    /// Origin: the centre of mass in the reference configuration, sum m_i X_i / M (m): where the
+    /// fragment's material came from (crater or scab of a slab, say).
+    std::array<double, 3> origin{};
     double                kinetic_energy = 0;
     /// Body index (cell material id): bodies share no nodes, so a fragment lies in one body.
     unsigned int body = 0;
