@@ -265,10 +265,11 @@ def debris_panels(axm, axv, rows):
     axm.legend(fontsize=8, loc="upper left")
     fast = col("fastest_debris_speed")
     if fast:
+        vmax = max(float(r["striking_velocity"]) for r in rows)
+        top = max(max(v for _, v in fast), vmax) * 1.1
         axv.plot(*zip(*fast), "o-", color="tab:red", label="fastest debris fragment")
-        top = max(max(v for _, v in fast), max(float(r["striking_velocity"]) for r in rows)) * 1.1
         axv.plot([0, top], [0, top], ":", color="grey", label="striking velocity")
-        axv.set_xlim(0, max(float(r["striking_velocity"]) for r in rows) * 1.1)
+        axv.set_xlim(0, vmax * 1.1)
         axv.set_ylim(0, top)
     axv.set_xlabel("striking velocity (m/s)")
     axv.set_ylabel("speed (m/s)")
