@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/base/function.h>
+#include <shard/base/sections.h>
 #include <shard/bc/boundary_conditions.h>
 
 #include <deal.II/base/mpi.h>
@@ -19,7 +20,7 @@ namespace shard::bc
   BoundaryConditions::declare_parameters(ParameterHandler &prm)
   {
     bool added = false;
-    prm.enter_subsection("I - Boundary conditions");
+    prm.enter_subsection(sections::boundary_conditions);
     if (!names_declared_)
       {
         prm.add_parameter("condition names", names_text_,
@@ -84,7 +85,7 @@ namespace shard::bc
   void
   BoundaryConditions::check_parameters(const base::PrmSource &source) const
   {
-    const std::string top = "I - Boundary conditions/";
+    const std::string top = sections::boundary_conditions + "/";
     base::check_names(source, top + "condition names", names_text_, names_, true);
     for (const auto &name : names_)
       {
@@ -174,7 +175,7 @@ namespace shard::bc
       {
         const auto &c    = *params_.at(name);
         const int   body = discretization.body_index(c.body);
-        const std::string path = "I - Boundary conditions/" + name + "/";
+        const std::string path = sections::boundary_conditions + "/" + name + "/";
         if (body < 0)
           source.fail(path + "body", c.body, "no such body in 'B - Mesh/body names'.");
         if (c.boundary_id >= 0 && !discretization.boundary_ids(body).count(static_cast<unsigned int>(c.boundary_id)))
@@ -245,7 +246,7 @@ namespace shard::bc
             for (const auto &w : Utilities::MPI::all_gather(discretization.communicator(), where.str()))
               if (at.empty())
                 at = w;
-            source.fail("I - Boundary conditions/" + b.name + "/type", b.type,
+            source.fail(sections::boundary_conditions + "/" + b.name + "/type", b.type,
                         "conflicts with condition '" + a.name + "' (" + a.type + "): both set the " + shared +
                           " velocity of " + std::to_string(n) + " node(s) of body '" + a.body + "' (boundary ids " +
                           std::to_string(a.boundary_id) + " and " + std::to_string(b.boundary_id) +
@@ -267,7 +268,7 @@ namespace shard::bc
         if (!m.empty())
           {
             const auto name = m.substr(0, m.find('\n'));
-            source.fail("I - Boundary conditions/" + name + "/function", params_.at(name)->function,
+            source.fail(sections::boundary_conditions + "/" + name + "/function", params_.at(name)->function,
                         "is not finite: " + m.substr(m.find('\n') + 1) + ".");
           }
     }
@@ -281,7 +282,7 @@ namespace shard::bc
                                     const base::PrmSource &source, Active &a)
   {
     const auto       &c    = *a.p;
-    const std::string path = "I - Boundary conditions/" + c.name + "/";
+    const std::string path = sections::boundary_conditions + "/" + c.name + "/";
     const BlastCharge charge(c.charge_mass * c.tnt_equivalence, base::parse_point(c.charge_position),
                              parse_burst(c.burst));
     const auto       &partitioner = *discretization.partitioner();
@@ -540,7 +541,7 @@ namespace shard::bc
       if (a.function)
         {
           if (const auto where = base::non_finite_at(*a.function, reference_points(a), t); !where.empty())
-            return "I - Boundary conditions/" + a.p->name + "/function = " + a.p->function + " is not finite: " + where;
+            return sections::boundary_conditions + "/" + a.p->name + "/function = " + a.p->function + " is not finite: " + where;
         }
     return "";
   }

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/base/binary_archive.h>
+#include <shard/base/sections.h>
 #include <shard/contact/contact.h>
 
 #include <deal.II/base/mpi.h>
@@ -34,7 +35,7 @@ namespace shard::contact
   Contact::declare_parameters(ParameterHandler &prm)
   {
     bool added = false;
-    prm.enter_subsection("H - Contact");
+    prm.enter_subsection(sections::contact);
     if (!declared_)
       {
         declared_ = added = true;
@@ -106,7 +107,7 @@ namespace shard::contact
   void
   Contact::check_parameters(const base::PrmSource &source) const
   {
-    const std::string top = "H - Contact/";
+    const std::string top = sections::contact + "/";
     base::check_names(source, top + "interactions", names_text_, names_, true);
     if (!names_.empty() && !(friction_velocity_ > 0))
       source.fail(top + "friction velocity", std::to_string(friction_velocity_), "> 0. Unit: m/s.");
@@ -156,7 +157,7 @@ namespace shard::contact
     for (const auto &name : names_)
       {
         Interaction s = settings_.at(name);
-        const std::string key = "H - Contact/" + name + "/";
+        const std::string key = sections::contact + "/" + name + "/";
         s.type = s.type_text == "particles" ? Type::particles : s.type_text == "rigid wall" ? Type::rigid_wall :
                                                                                               Type::node_to_surface;
         if (base::split(s.body_text, ',').empty())
@@ -221,8 +222,7 @@ namespace shard::contact
       if (involved[particles.body(i)])
         {
           const auto &h = particles.spacing(i);
-          const Vec3  support{{particles.rk_parameters().dilation * h[0], particles.rk_parameters().dilation * h[1],
-                               particles.rk_parameters().dilation * h[2]}};
+          const Vec3  support = particles.support_radius(i);
           add_node(pt.local_to_global(particles.local_dof(i)), particles.body(i), std::min({h[0], h[1], h[2]}), true,
                    support);
         }

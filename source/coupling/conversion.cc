@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/base/sections.h>
 #include <shard/coupling/conversion.h>
 #include <shard/fe/hex_force.h>
 
@@ -113,7 +114,7 @@ namespace shard::coupling
   Conversion::declare_parameters(ParameterHandler &prm)
   {
     bool added = false;
-    prm.enter_subsection("G - Conversion");
+    prm.enter_subsection(sections::conversion);
     if (!declared_main_)
       {
         declared_main_ = true;
@@ -189,8 +190,8 @@ namespace shard::coupling
   void
   Conversion::check_parameters(const base::PrmSource &source) const
   {
-    base::check_names(source, "G - Conversion/regions", region_names_text_, region_names_, true);
-    base::check_names(source, "G - Conversion/adaptive regions", adaptive_region_names_text_, adaptive_region_names_,
+    base::check_names(source, sections::conversion + "/regions", region_names_text_, region_names_, true);
+    base::check_names(source, sections::conversion + "/adaptive regions", adaptive_region_names_text_, adaptive_region_names_,
                       true);
     for (const auto &name : all_region_names())
       {
@@ -214,7 +215,7 @@ namespace shard::coupling
                                      key == "direction"    ? r.direction :
                                      key == "radius"       ? value(r.radius) :
                                                              value(r.length);
-            source.fail("G - Conversion/" + name + "/" + key, text, what.substr(what.find(':') + 2) + ".");
+            source.fail(sections::conversion + "/" + name + "/" + key, text, what.substr(what.find(':') + 2) + ".");
           }
       }
   }
@@ -229,7 +230,7 @@ namespace shard::coupling
       {
         const int b = discretization.body_index(name);
         if (b < 0)
-          source.fail("E - Particles/bodies", name, "no body named '" + name + "' in 'B - Mesh/body names'.");
+          source.fail(sections::particles + "/bodies", name, "no body named '" + name + "' in 'B - Mesh/body names'.");
         RegionParameters whole;
         whole.shape = "body";
         regions.emplace_back(whole, b);
@@ -239,7 +240,7 @@ namespace shard::coupling
       const auto &r = *declared_.at(name);
       const int   b = discretization.body_index(r.body);
       if (b < 0)
-        source.fail("G - Conversion/" + name + "/body", r.body, "no body named '" + r.body + "' in 'B - Mesh/body names'.");
+        source.fail(sections::conversion + "/" + name + "/body", r.body, "no body named '" + r.body + "' in 'B - Mesh/body names'.");
       return Region(r, b);
     };
     for (const auto &name : region_names_)
@@ -253,13 +254,13 @@ namespace shard::coupling
       {
         const int b = discretization.body_index(name);
         if (b < 0)
-          source.fail("G - Conversion/adaptive bodies", adaptive_bodies_text_,
+          source.fail(sections::conversion + "/adaptive bodies", adaptive_bodies_text_,
                       "no body named '" + name + "' in 'B - Mesh/body names'.");
         adaptive_body[b] = true;
         adaptive_bodies_.push_back(b);
       }
     if (adaptive() && plastic_strain_ == 0 && scaled_damage_ == 0 && min_jacobian_ == 0 && dt_floor_ == 0)
-      source.fail("G - Conversion/adaptive bodies", adaptive_bodies_text_,
+      source.fail(sections::conversion + "/adaptive bodies", adaptive_bodies_text_,
                   "names bodies for conversion during the run, but every criterion is 0 (off): set 'plastic "
                   "strain', 'scaled damage', 'minimum jacobian' or 'time step floor'.");
 

@@ -4,6 +4,7 @@
  * @brief The single-material-point driver `shard material-test` (doc/manual/materials.md,
  *        section "Material point driver").
  */
+#include <shard/base/sections.h>
 #include <shard/base/version.h>
 #include <shard/base/plot.h>
 #include <shard/driver/material_test.h>
@@ -26,7 +27,7 @@ namespace shard::driver
   {
     using materials::Material;
 
-    const std::string section = "M - Material test";
+    const std::string section = sections::material_test;
 
     /// `M - Material test/<name>`, the path of a key for messages.
     std::string
@@ -494,9 +495,8 @@ namespace shard::driver
   bool
   MaterialTest::declare_parameters(dealii::ParameterHandler &prm)
   {
-    if (declared_)
+    if (!first_declaration())
       return false;
-    declared_ = true;
     prm.enter_subsection(section);
     prm.add_parameter("material", material_,
                       "Name of the material to drive. Range: one of 'C - Materials/material names'.",

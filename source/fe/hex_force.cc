@@ -1,7 +1,9 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/base/parallel.h>
+#include <shard/base/sections.h>
+#include <shard/base/tensor.h>
 #include <shard/fe/hex_force.h>
 #include <shard/fe/hex_kernel.h>
-#include <shard/base/parallel.h>
 
 #include <deal.II/base/mpi.h>
 
@@ -17,7 +19,7 @@ namespace shard::fe
 
   namespace
   {
-    constexpr unsigned int batch_size = 64;
+    constexpr unsigned int batch_size = materials::point_batch_size;
     /// Largest number of batches per block of the threaded loop (a block runs on one thread).
     constexpr unsigned int max_batches_per_block = 16;
     /// Smallest number of blocks the batches are cut into, where there are batches enough.
@@ -27,10 +29,9 @@ namespace shard::fe
   bool
   HexForce::declare_parameters(ParameterHandler &prm)
   {
-    if (declared_)
+    if (!first_declaration())
       return false;
-    declared_ = true;
-    prm.enter_subsection("D - Finite elements");
+    prm.enter_subsection(sections::finite_elements);
     prm.add_parameter("hourglass type", hourglass_type_,
                       "Flanagan-Belytschko hourglass control: viscous (force q_hg rho c V^(2/3) / 4 times the "
                       "hourglass velocity; no stiffening in plastic flow; like LS-DYNA type 2) "
@@ -40,7 +41,7 @@ namespace shard::fe
     prm.add_parameter("hourglass coefficient", hourglass_coefficient_,
                       "Hourglass coefficient q_hg of the chosen form. Unit: 1. Range: 0 to 0.3.",
                       Patterns::Double(0, 0.3));
-    prm.add_parameter("bulk viscosity linear", bulk_q1_,
+    prm.add_parameter("bulk viscosity linear", viscosity_.q1,
                       "Linear coefficient Q1 of the element bulk viscosity q = rho L (Q2 L tr(D)^2 - Q1 c tr(D)) "
                       "(L = V / A_max), a pressure added in compression (tr(D) < 0) only and not stored, like "
                       "LS-DYNA's default for solids (0.06, 1.5); it spreads shocks over a few elements and "
@@ -48,7 +49,7 @@ namespace shard::fe
                       "element step to L / (c (sqrt(1 + r^2) + r)), r = Q1 - Q2 L tr(D) / c. Unit: 1. Range: "
                       "0 to 1.",
                       Patterns::Double(0, 1));
-    prm.add_parameter("bulk viscosity quadratic", bulk_q2_,
+    prm.add_parameter("bulk viscosity quadratic", viscosity_.q2,
                       "Quadratic coefficient Q2 of the element bulk viscosity. Unit: 1. Range: 0 to 4.",
                       Patterns::Double(0, 4));
     prm.leave_subsection();
@@ -59,7 +60,7 @@ namespace shard::fe
   HexForce::check_parameters(const base::PrmSource &source) const
   {
     if (!(hourglass_coefficient_ >= 0 && hourglass_coefficient_ <= 0.3))
-      source.fail("D - Finite elements/hourglass coefficient", std::to_string(hourglass_coefficient_),
+      source.fail(sections::finite_elements + "/hourglass coefficient", std::to_string(hourglass_coefficient_),
                   "must be in [0, 0.3]. Unit: 1.");
   }
 
@@ -110,15 +111,12 @@ namespace shard::fe
     nodes_.resize(8 * n);
     cell_index_.resize(n);
     body_.resize(n);
-    group_of_.resize(n);
+    std::vector<unsigned int> group_of(n);
     volume0_.resize(n);
     element_dt_.assign(n, 1e300);
     stress_.assign(6 * n, 0.);
     q_.assign(n, 0.);
     hourglass_.assign(12 * n, 0.);
-    groups_.assign(material_names.size(), Group());
-    for (unsigned int g = 0; g < groups_.size(); ++g)
-      groups_[g].material = &library.get(material_names[g]);
     element_of_cell_.assign(discretization.triangulation().n_active_cells(), -1);
     std::vector<double> centroid(3 * n, 0.); // reference centroids, for fields of the position
     for (unsigned int e = 0; e < n; ++e)
@@ -127,7 +125,7 @@ namespace shard::fe
         std::copy(raw[e].nodes, raw[e].nodes + 8, &nodes_[8 * e]);
         cell_index_[e] = raw[e].cell;
         body_[e]       = raw[e].body;
-        group_of_[e]   = raw[e].group;
+        group_of[e]    = raw[e].group;
         double x[8][3], B[8][3];
         for (unsigned int a = 0; a < 8; ++a)
           for (unsigned int i = 0; i < 3; ++i)
@@ -139,17 +137,10 @@ namespace shard::fe
         AssertThrow(volume0_[e] > 0, ExcMessage("inverted element in the input mesh (body " +
                                                 bodies[raw[e].body].name + ")"));
       }
-    for (unsigned int g = 0; g < groups_.size(); ++g)
-      {
-        auto &grp = groups_[g];
-        grp.begin = std::find(group_of_.begin(), group_of_.end(), g) - group_of_.begin();
-        grp.end   = grp.begin + std::count(group_of_.begin(), group_of_.end(), g);
-        grp.slot_names = grp.material->state_slot_names();
-        grp.n_slots    = grp.slot_names.size();
-        grp.state.assign(static_cast<std::size_t>(grp.end - grp.begin) * grp.n_slots, 0.);
-        grp.material->initialize_state(grp.end - grp.begin, grp.state.data());
-        grp.material->set_position_fields(grp.end - grp.begin, centroid.data() + 3 * grp.begin, grp.state.data());
-      }
+    std::vector<const materials::Material *> materials;
+    for (const auto &name : material_names)
+      materials.push_back(&library.get(name));
+    points_.build(materials, group_of, centroid.data());
     build_batches();
   }
 
@@ -178,38 +169,28 @@ namespace shard::fe
     std::vector<bool> drop(n_local_elements(), false);
     for (const unsigned int e : elements)
       drop[e] = true;
+    // Elements stay in their order (the material groups are contiguous in it).
     unsigned int n = 0;
-    for (auto &grp : groups_)
-      {
-        const unsigned int begin = n;
-        for (unsigned int e = grp.begin; e < grp.end; ++e)
-          if (!drop[e])
-            {
-              std::copy(&nodes_[8 * e], &nodes_[8 * e] + 8, &nodes_[8 * n]);
-              std::copy(&stress_[6 * e], &stress_[6 * e] + 6, &stress_[6 * n]);
-              q_[n] = q_[e];
-              std::copy(&hourglass_[12 * e], &hourglass_[12 * e] + 12, &hourglass_[12 * n]);
-              std::copy(&grp.state[std::size_t(e - grp.begin) * grp.n_slots],
-                        &grp.state[std::size_t(e - grp.begin + 1) * grp.n_slots],
-                        &grp.state[std::size_t(n - begin) * grp.n_slots]);
-              cell_index_[n] = cell_index_[e];
-              body_[n]       = body_[e];
-              group_of_[n]   = group_of_[e];
-              volume0_[n]    = volume0_[e];
-              element_dt_[n] = element_dt_[e];
-              ++n;
-            }
-        grp.state.resize(std::size_t(n - begin) * grp.n_slots);
-        grp.begin = begin;
-        grp.end   = n;
-      }
+    for (unsigned int e = 0; e < drop.size(); ++e)
+      if (!drop[e])
+        {
+          std::copy(&nodes_[8 * e], &nodes_[8 * e] + 8, &nodes_[8 * n]);
+          std::copy(&stress_[6 * e], &stress_[6 * e] + 6, &stress_[6 * n]);
+          q_[n] = q_[e];
+          std::copy(&hourglass_[12 * e], &hourglass_[12 * e] + 12, &hourglass_[12 * n]);
+          cell_index_[n] = cell_index_[e];
+          body_[n]       = body_[e];
+          volume0_[n]    = volume0_[e];
+          element_dt_[n] = element_dt_[e];
+          ++n;
+        }
+    points_.remove(drop);
     nodes_.resize(8 * n);
     stress_.resize(6 * n);
     q_.resize(n);
     hourglass_.resize(12 * n);
     cell_index_.resize(n);
     body_.resize(n);
-    group_of_.resize(n);
     volume0_.resize(n);
     element_dt_.resize(n);
     std::fill(element_of_cell_.begin(), element_of_cell_.end(), -1);
@@ -237,24 +218,20 @@ namespace shard::fe
         for (unsigned int a = 0; a < 8; ++a)
           for (unsigned int i = 0; i < 3; ++i)
             x[a][i] = X.local_element(nodes_[8 * e + a] + i);
-        const auto  *m = groups_[group_of_[e]].material;
+        const auto *m = &points_.material(e);
         if (m->rigid())
           continue; // no internal force, no step limit
         dt = std::min(dt, volume0_[e] / hex_max_face_area(x) / m->initial_wave_speed());
       }
     // The linear bulk viscosity lowers the step from the first force evaluation on.
-    dt /= std::sqrt(1 + bulk_q1_ * bulk_q1_) + bulk_q1_;
+    dt /= viscosity_.initial_step_factor();
     return Utilities::MPI::min(dt, discretization_->communicator());
   }
 
   double
   HexForce::state_value(const unsigned int e, const std::string &name) const
   {
-    const auto &grp = groups_[group_of_[e]];
-    const auto  it  = std::find(grp.slot_names.begin(), grp.slot_names.end(), name);
-    return it == grp.slot_names.end() ?
-             0. :
-             grp.state[static_cast<std::size_t>(e - grp.begin) * grp.n_slots + (it - grp.slot_names.begin())];
+    return points_.state_value(e, name);
   }
 
   std::string
@@ -281,13 +258,8 @@ namespace shard::fe
   void
   HexForce::build_batches()
   {
-    // Batches of batch_size elements within each material group, in element order.
-    batches_.clear();
-    // Rigid bodies get none: no stress, no step limit (time::RigidBodies moves their nodes).
-    for (unsigned int g = 0; g < groups_.size(); ++g)
-      if (!groups_[g].material->rigid())
-        for (unsigned int b0 = groups_[g].begin; b0 < groups_[g].end; b0 += batch_size)
-          batches_.push_back({g, b0, std::min(b0 + batch_size, groups_[g].end)});
+    // The batches of the material groups, in element order (rigid bodies have none).
+    const auto &batches = points_.batches();
     // Blocks of batches_per_block_ consecutive batches: a block runs on one thread in element order
     // (the neighbours of an element are mostly near it in that order, so its nodes are still in
     // cache). Greedy colouring of the blocks: colour c takes, in block order, every block not yet
@@ -298,8 +270,8 @@ namespace shard::fe
     // least min_blocks blocks where possible. The block size depends on the elements of the
     // rank only, never on the thread count.
     batches_per_block_ =
-      std::clamp<unsigned int>(batches_.size() / min_blocks, 1, max_batches_per_block);
-    const unsigned int n_blocks = base::n_chunks(batches_.size(), batches_per_block_);
+      std::clamp<unsigned int>(batches.size() / min_blocks, 1, max_batches_per_block);
+    const unsigned int n_blocks = base::n_chunks(batches.size(), batches_per_block_);
     std::vector<int>          colour(n_blocks, -1);
     std::vector<unsigned int> stamp;
     for (const unsigned int j : nodes_)
@@ -312,9 +284,9 @@ namespace shard::fe
         for (unsigned int b = 0; b < n_blocks; ++b)
           if (colour[b] < 0)
             {
-              const unsigned int  last_batch = std::min<unsigned int>(batches_.size(), (b + 1) * batches_per_block_) - 1;
-              const unsigned int *first      = &nodes_[8 * batches_[b * batches_per_block_].begin],
-                                 *last       = &nodes_[8 * batches_[last_batch].end];
+              const unsigned int  last_batch = std::min<unsigned int>(batches.size(), (b + 1) * batches_per_block_) - 1;
+              const unsigned int *first      = &nodes_[8 * batches[b * batches_per_block_].begin],
+                                 *last       = &nodes_[8 * batches[last_batch].end];
               if (std::any_of(first, last, [&](unsigned int j) { return stamp[j / 3] == c + 1; }))
                 continue;
               std::for_each(first, last, [&](unsigned int j) { stamp[j / 3] = c + 1; });
@@ -334,13 +306,13 @@ namespace shard::fe
     double       *fp = f.begin();
 
     // One partial result and one error slot per batch, combined in batch order below.
-    const unsigned int              n_batches = batches_.size();
+    const auto                     &batches  = points_.batches();
+    const unsigned int              n_batches = batches.size();
     std::vector<ForceResult>        partial(n_batches);
     std::vector<std::exception_ptr> error(n_batches);
 
     const auto process = [&](const unsigned int bi) {
-      const Batch &bat    = batches_[bi];
-      auto        &grp    = groups_[bat.group];
+      const auto  &bat    = batches[bi];
       ForceResult &result = partial[bi];
       // Per-batch scratch: kinematics of pass 1 used by the material call and pass 2.
       struct Scratch
@@ -399,9 +371,9 @@ namespace shard::fe
           dek[3]      = 0.5 * dt * (L[1][2] + L[2][1]);
           dek[4]      = 0.5 * dt * (L[0][2] + L[2][0]);
           dek[5]      = 0.5 * dt * (L[0][1] + L[1][0]);
-          hughes_winget_rotation(W, dt, s.rotation);
+          tensor::hughes_winget_rotation(W, dt, s.rotation);
           double *sig = &stress_[6 * e];
-          rotate_symmetric(s.rotation, sig);
+          tensor::rotate_symmetric(s.rotation, sig);
           std::copy(sig, sig + 6, s.stress_old);
           J[k]       = s.volume / volume0_[e];
           s.max_area = hex_max_face_area(x);
@@ -419,43 +391,26 @@ namespace shard::fe
         }
 
       // One material call per batch.
-      materials::PointBatch batch;
-      batch.n                     = nb;
-      batch.dt                    = dt;
-      batch.strain_increment      = de;
-      batch.relative_volume       = J;
-      batch.characteristic_length = length;
-      batch.stress                = &stress_[6 * b0];
-      batch.state                 = grp.state.data() + static_cast<std::size_t>(b0 - grp.begin) * grp.n_slots;
-      batch.wave_speed            = c;
-      grp.material->update(batch);
+      points_.update(bat, dt, de, J, length, stress_.data(), c);
 
       // Pass 2: energy, nodal forces, hourglass control, time step.
-      const double rho0 = grp.material->density();
+      const double rho0 = points_.groups()[bat.group].material->density();
       for (unsigned int k = 0; k < nb; ++k)
         {
           const unsigned int e   = b0 + k;
           Scratch           &s   = scratch[k];
           const double      *sig = &stress_[6 * e];
           const double      *dek = &de[6 * k];
-          double             work = 0;
-          for (unsigned int i = 0; i < 3; ++i)
-            work += (s.stress_old[i] + sig[i]) * dek[i];
-          for (unsigned int i = 3; i < 6; ++i)
-            work += 2. * (s.stress_old[i] + sig[i]) * dek[i];
-          work *= 0.5 * s.volume_mid;
+          double work = materials::stress_work(s.stress_old, sig, dek, s.volume_mid,
+                                               materials::WorkOrder::normal_then_shear);
           if (!std::isfinite(work) || !std::isfinite(c[k]))
             fail(e, d, step, "non-finite stress (sigma_xx = " + std::to_string(sig[0]) + " Pa)");
           const double rho = rho0 / J[k];
-          // Bulk viscosity in compression (not stored). Its work is booked like the stress
-          // work, with the mean of the q of both ends of the step.
+          // Bulk viscosity in compression (not stored), its work and step limit.
           const double trd = dek[0] + dek[1] + dek[2];
-          const double q   = bulk_viscosity(rho, length[k], c[k], trd, dt, bulk_q1_, bulk_q2_);
-          work -= 0.5 * (q_[e] + q) * trd * s.volume_mid;
-          q_[e] = q;
+          const double q   = viscosity_.apply(rho, length[k], c[k], trd, dt, s.volume_mid, q_[e], work);
           result.internal_energy += work;
-          // The bulk viscosity lowers the stable step (LS-DYNA's form of the correction).
-          element_dt_[e]   = bulk_viscosity_step(length[k], c[k], trd, dt, bulk_q1_, bulk_q2_);
+          element_dt_[e] = viscosity_.stable_step(length[k], c[k], trd, dt);
           result.stable_dt = std::min(result.stable_dt, element_dt_[e]);
 
           // Stiffness hourglass control: the hourglass forces rotate with the element and

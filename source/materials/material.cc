@@ -6,6 +6,7 @@
 #include <shard/materials/material.h>
 
 #include <algorithm>
+#include <cmath>
 
 namespace shard::materials
 {
@@ -31,4 +32,16 @@ namespace shard::materials
   void
   Material::write_resolved_parameters(std::ostream &) const
   {}
+
+  double
+  Material::elastic_energy_density(const double *s, const double jacobian) const
+  {
+    const auto   kg = elastic_moduli();
+    const double p  = (s[0] + s[1] + s[2]) / 3.;
+    double       ss = 0;
+    for (unsigned int c = 0; c < 3; ++c)
+      ss += (s[c] - p) * (s[c] - p) + 2 * s[c + 3] * s[c + 3];
+    const double lj = std::log(jacobian);
+    return 0.5 * kg[0] * lj * lj + ss / (4 * kg[1]);
+  }
 } // namespace shard::materials

@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/base/sections.h>
 #include <shard/materials/material_library.h>
 
 #include <fstream>
@@ -11,7 +12,7 @@ namespace shard::materials
   MaterialLibrary::declare_parameters(dealii::ParameterHandler &prm)
   {
     bool added = false;
-    prm.enter_subsection("C - Materials");
+    prm.enter_subsection(sections::materials);
     if (!names_declared_)
       {
         prm.add_parameter("material names", names_text_,
@@ -50,7 +51,7 @@ namespace shard::materials
   void
   MaterialLibrary::check_parameters(const base::PrmSource &source) const
   {
-    const std::string top = "C - Materials/";
+    const std::string top = sections::materials + "/";
     base::check_names(source, top + "material names", names_text_, names_, false);
     for (const auto &name : names_)
       {

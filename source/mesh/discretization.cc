@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/base/function.h>
+#include <shard/base/sections.h>
 #include <shard/mesh/discretization.h>
 #include <shard/mesh/gmsh_check.h>
 
@@ -279,7 +280,7 @@ namespace shard::mesh
         (!b.mesh_file.empty() && b.mesh_file[0] == '/') ? b.mesh_file : directory + b.mesh_file;
       std::ifstream in(path);
       if (!in)
-        source.fail("B - Mesh/" + b.name + "/mesh file", b.mesh_file,
+        source.fail(sections::mesh + "/" + b.name + "/mesh file", b.mesh_file,
                     "cannot open '" + path + "'. It must be a readable Gmsh .msh file of hexahedra (path "
                     "relative to the .prm file).");
       GridIn<3> grid_in;
@@ -290,7 +291,7 @@ namespace shard::mesh
         }
       catch (const std::exception &e)
         {
-          source.fail("B - Mesh/" + b.name + "/mesh file", b.mesh_file,
+          source.fail(sections::mesh + "/" + b.name + "/mesh file", b.mesh_file,
                       "'" + path + "' is not a readable Gmsh mesh of hexahedra: " + base::exception_reason(e));
         }
       const double s = b.mesh_scale;
@@ -309,7 +310,7 @@ namespace shard::mesh
   Discretization::declare_parameters(ParameterHandler &prm)
   {
     bool added = false;
-    prm.enter_subsection("B - Mesh");
+    prm.enter_subsection(sections::mesh);
     if (declared_.empty())
       {
         prm.add_parameter("body names", body_names_text_,
@@ -403,7 +404,7 @@ namespace shard::mesh
   void
   Discretization::check_parameters(const base::PrmSource &source) const
   {
-    const std::string top = "B - Mesh/";
+    const std::string top = sections::mesh + "/";
     base::check_names(source, top + "body names", body_names_text_, body_names_, false);
     for (const auto &name : body_names_)
       {
@@ -528,7 +529,7 @@ namespace shard::mesh
               (!b.mesh_file.empty() && b.mesh_file[0] == '/') ? b.mesh_file : source.directory() + b.mesh_file;
             std::ifstream in(path, std::ios::binary);
             if (!in)
-              source.fail("B - Mesh/" + b.name + "/mesh file", b.mesh_file,
+              source.fail(sections::mesh + "/" + b.name + "/mesh file", b.mesh_file,
                           "cannot open '" + path + "'. It must be a readable Gmsh .msh file of hexahedra (path "
                           "relative to the .prm file).");
             try
@@ -537,7 +538,7 @@ namespace shard::mesh
               }
             catch (const GmshError &e)
               {
-                source.fail("B - Mesh/" + b.name + "/mesh file", b.mesh_file,
+                source.fail(sections::mesh + "/" + b.name + "/mesh file", b.mesh_file,
                             "'" + path + "' is not a readable Gmsh mesh of hexahedra: " + e.what());
               }
           }
@@ -554,7 +555,7 @@ namespace shard::mesh
             else
               count << "more than 1e308";
             total << std::setprecision(total_cells < 1e15 ? 15 : 3) << total_cells;
-            source.fail("B - Mesh/" + b.name + "/" + key, value.str(),
+            source.fail(sections::mesh + "/" + b.name + "/" + key, value.str(),
                         "gives " + count.str() + " cells" +
                           (total_cells > cells ? " (the model with the bodies before it: " + total.str() + ")" : std::string()) +
                           ", more than 'B - Mesh/max cells' = " + std::to_string(max_cells_) +
@@ -590,7 +591,7 @@ namespace shard::mesh
                   << "; a cube has 1, shard needs > 1e-9): the body's dimensions, element size"
                   << (b.shape == "gmsh" ? ", the file's vertices and mesh scale" : "")
                   << " must give elements of finite, positive volume.";
-              source.fail("B - Mesh/" + b.name + "/" + key, value.str(), why.str());
+              source.fail(sections::mesh + "/" + b.name + "/" + key, value.str(), why.str());
             }
           for (const auto &cell : tria.active_cell_iterators())
             for (const unsigned int f : cell->face_indices())
@@ -607,7 +608,7 @@ namespace shard::mesh
         for (const auto &cell : tria.active_cell_iterators())
           {
             if (cell->reference_cell() != ReferenceCells::Hexahedron)
-              throw base::InputError("B - Mesh/" + bodies_[k].name +
+              throw base::InputError(sections::mesh + "/" + bodies_[k].name +
                                      ": the mesh must consist of hexahedra only.");
             CellData<3> c;
             for (unsigned int v = 0; v < 8; ++v)

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/base/binary_archive.h>
+#include <shard/base/sections.h>
 #include <shard/output/checkpoint.h>
 
 #include <deal.II/base/mpi.h>
@@ -29,7 +30,7 @@ namespace shard::output
   {
     // 2: the contact state carries the contact normals of node-to-surface slaves.
     // 3: the global state carries the FNV-1a hashes of history.csv and fragments.csv.
-    constexpr const char *magic = "shard checkpoint 4";
+    constexpr const char *magic = "shard checkpoint 5";
     using base::fnv1a;
 
     /// Writes @p data to @p path through `path.tmp`, fsync and rename. @p pause_half: test hook
@@ -159,10 +160,9 @@ namespace shard::output
   bool
   Checkpoint::declare_parameters(ParameterHandler &prm)
   {
-    if (declared_)
+    if (!first_declaration())
       return false;
-    declared_ = true;
-    prm.enter_subsection("N - Checkpoint");
+    prm.enter_subsection(sections::checkpoint);
     prm.add_parameter("interval", interval_,
                       "Steps between checkpoints (written at the end of every step that is a multiple of it); "
                       "0 writes none. Unit: 1. Range: >= 0.",
@@ -187,7 +187,7 @@ namespace shard::output
   Checkpoint::check_parameters(const base::PrmSource &source) const
   {
     if (!restart_from_.empty() && !std::filesystem::exists(restart_from_))
-      source.fail("N - Checkpoint/restart from", restart_from_,
+      source.fail(sections::checkpoint + "/restart from", restart_from_,
                   "no such file or directory (a checkpoint directory or a checkpoint_<step>.manifest file).");
   }
 
@@ -251,7 +251,7 @@ namespace shard::output
         std::error_code ec;
         std::filesystem::create_directories(directory_, ec);
         if (ec || !std::filesystem::is_directory(directory_))
-          source.fail("N - Checkpoint/directory", directory_, "cannot create the directory (" + ec.message() + ").");
+          source.fail(sections::checkpoint + "/directory", directory_, "cannot create the directory (" + ec.message() + ").");
       }
     MPI_Barrier(comm_);
 
@@ -275,12 +275,12 @@ namespace shard::output
             manifest = entry.path().string();
           }
         if (best < 0)
-          source.fail("N - Checkpoint/restart from", restart_from_,
+          source.fail(sections::checkpoint + "/restart from", restart_from_,
                       "the directory holds no complete checkpoint (checkpoint_<step>.manifest).");
         Manifest    m;
         std::string why;
         if (!parse_manifest(manifest, m, why))
-          source.fail("N - Checkpoint/restart from", restart_from_,
+          source.fail(sections::checkpoint + "/restart from", restart_from_,
                       "the newest checkpoint manifest '" + manifest + "' " + why +
                         ": remove it to restart from the one before, or name that one's manifest.");
       }
@@ -290,7 +290,7 @@ namespace shard::output
   void
   Checkpoint::read(const std::string &manifest, const base::PrmSource &source)
   {
-    const std::string key = "N - Checkpoint/restart from";
+    const std::string key = sections::checkpoint + "/restart from";
     Manifest          m;
     std::string       why;
     if (!parse_manifest(manifest, m, why))

@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/base/sections.h>
 #include <shard/materials/material.h>
 #include <shard/output/field_output.h>
 
@@ -22,10 +23,9 @@ namespace shard::output
   bool
   FieldOutput::declare_parameters(ParameterHandler &prm)
   {
-    if (declared_)
+    if (!first_declaration())
       return false;
-    declared_ = true;
-    prm.enter_subsection("K - Output");
+    prm.enter_subsection(sections::output);
     prm.add_parameter("directory", directory_,
                       "Output directory (created if missing); relative paths are relative to the "
                       "working directory.");
@@ -64,7 +64,7 @@ namespace shard::output
   FieldOutput::check_parameters(const base::PrmSource &source) const
   {
     if (directory_.empty())
-      source.fail("K - Output/directory", "", "must not be empty.");
+      source.fail(sections::output + "/directory", "", "must not be empty.");
     std::array<double, 3> a{};
     try
       {
@@ -72,10 +72,10 @@ namespace shard::output
       }
     catch (const std::invalid_argument &e)
       {
-        source.fail("K - Output/debris axis", debris_axis_, std::string(e.what()) + ".");
+        source.fail(sections::output + "/debris axis", debris_axis_, std::string(e.what()) + ".");
       }
     if (!(std::hypot(a[0], a[1], a[2]) > 0))
-      source.fail("K - Output/debris axis", debris_axis_, "must have a length > 0.");
+      source.fail(sections::output + "/debris axis", debris_axis_, "must have a length > 0.");
   }
 
   std::array<double, 3>
@@ -112,7 +112,7 @@ namespace shard::output
       }
     problem = Utilities::MPI::broadcast(discretization.communicator(), problem, 0);
     if (!problem.empty())
-      throw base::InputError("K - Output/directory = " + directory_ + ": cannot create the directory (" + problem +
+      throw base::InputError(sections::output + "/directory = " + directory_ + ": cannot create the directory (" + problem +
                              ").");
   }
 
@@ -129,7 +129,7 @@ namespace shard::output
       }
     problem = Utilities::MPI::broadcast(discretization_->communicator(), problem, 0);
     if (!problem.empty())
-      throw std::runtime_error("K - Output/directory = " + directory_ + ": cannot create the directory (" + problem +
+      throw std::runtime_error(sections::output + "/directory = " + directory_ + ": cannot create the directory (" + problem +
                                ").");
   }
 

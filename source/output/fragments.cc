@@ -8,8 +8,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <limits>
 #include <map>
+#include <sstream>
+#include <string>
 
 namespace shard::output
 {
@@ -407,5 +410,32 @@ namespace shard::output
         out.push_back(f);
       }
     return out;
+  }
+  std::string
+  summary_json(const std::vector<Fragment> &fragments, const double time, const unsigned int dust_particles,
+               const std::array<double, 3> &axis)
+  {
+    // Debris and dust (doc/manual/failure.md, "Fragments").
+    const auto s      = summarize(fragments);
+    const auto number = [](const double x) {
+      std::ostringstream o;
+      o << std::setprecision(17) << x;
+      return std::isfinite(x) ? o.str() : std::string("null");
+    };
+    std::ostringstream j;
+    j << "{\"time\": " << number(time) << ", \"count\": " << s.count << ", \"mass\": " << number(s.mass)
+      << ", \"dust_particles\": " << dust_particles << ", \"debris_axis\": [" << number(axis[0]) << ", "
+      << number(axis[1]) << ", " << number(axis[2]) << "], \"body_mass\": " << number(s.body_mass)
+      << ", \"debris_count\": " << s.debris_count << ", \"debris_mass\": " << number(s.debris_mass)
+      << ", \"dust_count\": " << s.dust_count << ", \"dust_mass\": " << number(s.dust_mass)
+      << ", \"dust_fraction\": " << number(s.dust_fraction)
+      << ", \"coarse_debris_mass\": " << number(s.coarse_debris_mass)
+      << ", \"coarse_debris_fraction\": " << number(s.coarse_debris_fraction)
+      << ", \"largest_debris_mass\": " << number(s.largest_debris_mass)
+      << ", \"fastest_debris_speed\": " << number(s.fastest_debris_speed)
+      << ", \"median_coarse_debris_mass\": " << number(s.median_coarse_debris_mass)
+      << ", \"debris_cone_angle_mean\": " << number(s.cone_angle_mean)
+      << ", \"debris_cone_angle_90\": " << number(s.cone_angle_90) << "}";
+    return j.str();
   }
 } // namespace shard::output

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/base/function.h>
+#include <shard/base/sections.h>
 #include <shard/materials/material.h>
 #include <shard/output/quantities.h>
 
@@ -34,10 +35,9 @@ namespace shard::output
   bool
   Quantities::declare_parameters(ParameterHandler &prm)
   {
-    if (declared_)
+    if (!first_declaration())
       return false;
-    declared_ = true;
-    prm.enter_subsection("L - Quantities");
+    prm.enter_subsection(sections::quantities);
     prm.add_parameter("quantities", text_,
                       "Columns added to history.csv: entries 'name = kind arguments' separated by ';'. "
                       "Kinds: reaction <condition> <x|y|z|n>; load <condition> <x|y|z>: sum of the forces a "
@@ -165,7 +165,7 @@ namespace shard::output
     std::string error;
     parse(error);
     if (!error.empty())
-      source.fail("L - Quantities/quantities", text_, error);
+      source.fail(sections::quantities + "/quantities", text_, error);
   }
 
   void
@@ -181,7 +181,7 @@ namespace shard::output
     items_          = parse(error);
     const auto &X   = discretization.reference_positions();
     const auto  bad = [&](const Item &it, const std::string &why) {
-      source.fail("L - Quantities/quantities", text_, "'" + it.name + " = " + it.kind + " ...': " + why);
+      source.fail(sections::quantities + "/quantities", text_, "'" + it.name + " = " + it.kind + " ...': " + why);
     };
     // The first argument names a body or 'all' (-1).
     const auto body_or_all = [&](Item &it) {

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
-#include <shard/fe/hex_kernel.h>
+#include <shard/base/sections.h>
+#include <shard/base/tensor.h>
 #include <shard/particles/bond_failure.h>
 
 #include <deal.II/base/mpi.h>
@@ -51,7 +52,7 @@ namespace shard::particles
   BondFailure::declare_parameters(ParameterHandler &prm)
   {
     bool added = false;
-    prm.enter_subsection("E - Particles");
+    prm.enter_subsection(sections::particles);
     prm.enter_subsection("bond failure");
     if (!declared_)
       {
@@ -123,7 +124,7 @@ namespace shard::particles
   void
   BondFailure::check_parameters(const base::PrmSource &source) const
   {
-    const std::string top = "E - Particles/bond failure/";
+    const std::string top = sections::particles + "/bond failure/";
     for (const auto &[name, st] : settings_)
       {
         if (st.criterion_text != "none" && !(st.threshold > 0))
@@ -188,7 +189,7 @@ namespace shard::particles
             const auto slots = m.state_slot_names();
             const auto it    = std::find(slots.begin(), slots.end(), slot);
             if (it == slots.end())
-              source.fail("E - Particles/bond failure/" + name + "/criterion", st.criterion_text,
+              source.fail(sections::particles + "/bond failure/" + name + "/criterion", st.criterion_text,
                           "a criterion the material's model provides (model '" + m.model_name() +
                             "' has no history slot '" + slot + "').");
             slot_[i] = static_cast<int>(it - slots.begin());
@@ -205,9 +206,9 @@ namespace shard::particles
         case BondCriterion::scaled_damage:
           return spg.state(i)[slot_[i]] / threshold_[i];
         case BondCriterion::principal_stress:
-          return fe::symmetric_eigenvalues(spg.stress(i))[2] / threshold_[i];
+          return tensor::symmetric_eigenvalues(spg.stress(i))[2] / threshold_[i];
         case BondCriterion::principal_strain:
-          return (fe::principal_stretches(spg.deformation_gradient(i))[2] - 1.) / threshold_[i];
+          return (tensor::principal_stretches(spg.deformation_gradient(i))[2] - 1.) / threshold_[i];
         case BondCriterion::none:
           break;
       }

@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/base/sections.h>
 #include <shard/fe/hex_kernel.h>
 #include <shard/particles/particle_set.h>
 
@@ -49,10 +50,9 @@ namespace shard::particles
   bool
   ParticleSet::declare_parameters(ParameterHandler &prm)
   {
-    if (declared_)
+    if (!first_declaration())
       return false;
-    declared_ = true;
-    prm.enter_subsection("E - Particles");
+    prm.enter_subsection(sections::particles);
     prm.add_parameter("bodies", body_names_text_,
                       "Bodies (names from 'B - Mesh/body names', comma separated) discretized by particles "
                       "instead of elements: one particle at every node of the body's hex mesh, volume = sum of "
@@ -79,7 +79,7 @@ namespace shard::particles
   ParticleSet::check_parameters(const base::PrmSource &source) const
   {
     if (!(rk_.dilation >= 1.0) || !std::isfinite(rk_.dilation))
-      source.fail("E - Particles/dilation", std::to_string(rk_.dilation),
+      source.fail(sections::particles + "/dilation", std::to_string(rk_.dilation),
                   "must be >= 1: at 1 only the particle itself lies in its support and the moment matrix is "
                   "singular. Unit: 1. Advised: 1.4 to 1.8.");
   }
@@ -101,7 +101,7 @@ namespace shard::particles
       {
         const int b = discretization.body_index(name);
         if (b < 0)
-          source.fail("E - Particles/bodies", body_names_text_, "no body named '" + name + "' in 'B - Mesh/body names'.");
+          source.fail(sections::particles + "/bodies", body_names_text_, "no body named '" + name + "' in 'B - Mesh/body names'.");
         particle_body_[b] = true;
       }
     const auto converted = [&](const unsigned int cell) {
@@ -328,8 +328,7 @@ namespace shard::particles
         const unsigned int p = stencils_.cloud_index[k];
         compact_id_[k]       = static_cast<unsigned long long>(table[p].row[f_id]);
         compact_position_[k] = cloud.position[p];
-        for (unsigned int c = 0; c < 3; ++c)
-          compact_radius_[k][c] = rk_.dilation * cloud.spacing[p][c];
+        compact_radius_[k]   = rk_.support_radius(cloud.spacing[p]);
       }
     a_identity_.resize(stencils_.n_j);
     for (unsigned int j = 0; j < stencils_.n_j; ++j)

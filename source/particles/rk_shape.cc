@@ -234,12 +234,12 @@ namespace shard::particles
     params.check();
     std::vector<Point3> a(spacing.size());
     for (std::size_t i = 0; i < spacing.size(); ++i)
-      for (unsigned int k = 0; k < 3; ++k)
-        {
+      {
+        for (unsigned int k = 0; k < 3; ++k)
           if (!(spacing[i][k] > 0.0) || !std::isfinite(spacing[i][k]))
             throw std::invalid_argument("support_radii_from_spacing: spacing must be positive and finite");
-          a[i][k] = params.dilation * spacing[i][k];
-        }
+        a[i] = params.support_radius(spacing[i]);
+      }
     return a;
   }
 

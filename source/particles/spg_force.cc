@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/base/parallel.h>
-#include <shard/fe/hex_kernel.h>
+#include <shard/base/sections.h>
+#include <shard/base/tensor.h>
 #include <shard/particles/spg_force.h>
 
 #include <deal.II/base/mpi.h>
@@ -17,7 +18,7 @@ namespace shard::particles
 
   namespace
   {
-    constexpr unsigned int batch_size = 64;
+    constexpr unsigned int batch_size = materials::point_batch_size;
 
     /// Determinant and inverse of a row-major 3x3 matrix.
     double
@@ -56,17 +57,16 @@ namespace shard::particles
     double
     smallest_stretch(const double *F)
     {
-      return fe::principal_stretches(F)[0];
+      return tensor::principal_stretches(F)[0];
     }
   } // namespace
 
   bool
   SpgForce::declare_parameters(ParameterHandler &prm)
   {
-    if (declared_)
+    if (!first_declaration())
       return false;
-    declared_ = true;
-    prm.enter_subsection("F - Particle formulation");
+    prm.enter_subsection(sections::particle_formulation);
     prm.add_parameter("smoothing", smoothing_text_,
                       "two-level: direct displacement smoothing, u = A d at the particles and F from the gradients "
                       "of the smoothing functions (default). none: direct nodal integration of the RK functions "
@@ -84,12 +84,12 @@ namespace shard::particles
     prm.add_parameter("filter interval", options_.filter_interval,
                       "N of the filter (steps between two smoothings, like LS-DYNA's SMSTEP). Unit: steps. Range: >= 1.",
                       Patterns::Integer(1));
-    prm.add_parameter("bulk viscosity linear", bulk_q1_,
+    prm.add_parameter("bulk viscosity linear", viscosity_.q1,
                       "Linear coefficient Q1 of the bulk viscosity q = rho L (Q2 L tr(D)^2 - Q1 c tr(D)), applied "
                       "in compression (tr(D) < 0) like LS-DYNA's default for solids; damps the ringing behind "
                       "shock fronts. Its work is part of the internal energy. Unit: 1. Range: 0 to 1.",
                       Patterns::Double(0, 1));
-    prm.add_parameter("bulk viscosity quadratic", bulk_q2_,
+    prm.add_parameter("bulk viscosity quadratic", viscosity_.q2,
                       "Quadratic coefficient Q2 of the bulk viscosity. Unit: 1. Range: 0 to 4.", Patterns::Double(0, 4));
     prm.add_parameter("gradient correction", correction_text_,
                       "Correction of the nodal gradients so that nodal integration meets the integration "
@@ -113,10 +113,10 @@ namespace shard::particles
   SpgForce::check_parameters(const base::PrmSource &source) const
   {
     if (!(options_.residual_coefficient >= 0 && options_.residual_coefficient <= 10))
-      source.fail("F - Particle formulation/residual coefficient", std::to_string(options_.residual_coefficient),
+      source.fail(sections::particle_formulation + "/residual coefficient", std::to_string(options_.residual_coefficient),
                   "must be in [0, 10]. Unit: 1.");
     if (correction_coarse_size_ != 0 && !(correction_coarse_size_ >= 2 && correction_coarse_size_ <= 50))
-      source.fail("F - Particle formulation/correction coarse size", std::to_string(correction_coarse_size_),
+      source.fail(sections::particle_formulation + "/correction coarse size", std::to_string(correction_coarse_size_),
                   "must be 0 (no coarse space) or in [2, 50]. Unit: mean particle spacings.");
   }
 
@@ -142,30 +142,20 @@ namespace shard::particles
     const auto        &bodies = discretization.bodies();
 
     // Material groups: runs of owned rows with the same material (rows are sorted by body).
-    groups_.clear();
-    group_of_.resize(n);
-    for (unsigned int i = 0; i < n; ++i)
-      {
-        const auto *m = &library.get(bodies[particles.body(i)].material);
-        if (groups_.empty() || groups_.back().material != m)
-          {
-            groups_.emplace_back();
-            groups_.back().material = m;
-            groups_.back().begin    = i;
-          }
-        groups_.back().end = i + 1;
-        group_of_[i]       = groups_.size() - 1;
-      }
-    for (auto &g : groups_)
-      {
-        g.slot_names = g.material->state_slot_names();
-        g.n_slots    = g.slot_names.size();
-        g.state.assign(std::size_t(g.end - g.begin) * g.n_slots, 0.);
-        g.material->initialize_state(g.end - g.begin, g.state.data());
-        for (unsigned int i = g.begin; i < g.end; ++i)
-          g.material->set_position_fields(1, particles.position(i).data(),
-                                          g.state.data() + std::size_t(i - g.begin) * g.n_slots);
-      }
+    {
+      std::vector<const materials::Material *> materials;
+      std::vector<unsigned int>                group_of(n);
+      std::vector<double>                      positions(3 * std::size_t(n));
+      for (unsigned int i = 0; i < n; ++i)
+        {
+          const auto *m = &library.get(bodies[particles.body(i)].material);
+          if (materials.empty() || materials.back() != m)
+            materials.push_back(m);
+          group_of[i] = materials.size() - 1;
+          std::copy_n(particles.position(i).data(), 3, &positions[3 * std::size_t(i)]);
+        }
+      points_.build(materials, group_of, positions.data());
+    }
     F_.assign(9 * n, 0.);
     for (unsigned int i = 0; i < n; ++i)
       F_[9 * i] = F_[9 * i + 4] = F_[9 * i + 8] = 1.;
@@ -176,11 +166,11 @@ namespace shard::particles
     std::vector<double> lambda(n);
     for (unsigned int i = 0; i < n; ++i)
       {
-        const auto  *m = groups_[group_of_[i]].material;
+        const auto  *m = &points_.material(i);
         const auto  &h = particles.spacing(i);
         density_[i]    = m->density();
         length_[i]     = std::min({h[0], h[1], h[2]});
-        const double a = particles.rk_parameters().dilation * (h[0] + h[1] + h[2]) / 3.;
+        const double a = particles.mean_support_radius(i);
         const double c = m->initial_wave_speed();
         lambda[i]      = particles.volume(i) * m->density() * c * c / (a * a);
       }
@@ -334,7 +324,7 @@ namespace shard::particles
         std::copy_n(op_.last_residual(i), 3, p.residual.begin());
         std::copy_n(op_.residual_offset(i), 3, p.residual_offset.begin());
         std::copy(&stress_[6 * i], &stress_[6 * i] + 6, p.stress.begin());
-        p.state.assign(state(i), state(i) + groups_[group_of_[i]].n_slots);
+        p.state.assign(state(i), state(i) + points_.n_slots(i));
         out.emplace(particles_->global_id(i), std::move(p));
       }
     return out;
@@ -345,11 +335,10 @@ namespace shard::particles
   {
     evaluated_ = false;
     std::copy(stress, stress + 6, &stress_[6 * i]);
-    auto &g = groups_[group_of_[i]];
-    double *state = g.state.data() + std::size_t(i - g.begin) * g.n_slots;
-    std::copy(history, history + g.n_slots, state);
+    double *state = points_.state(i);
+    std::copy(history, history + points_.n_slots(i), state);
     // Fields of the reference position are the particle's own, not an average of its sources.
-    g.material->set_position_fields(1, particles_->position(i).data(), state);
+    points_.material(i).set_position_fields(1, particles_->position(i).data(), state);
     q_[i] = q;
   }
 
@@ -466,9 +455,8 @@ namespace shard::particles
   {
     double dt = 1e300;
     for (unsigned int i = 0; i < n_owned(); ++i)
-      dt = std::min(dt, length_[i] * smallest_stretch(&F_[9 * i]) /
-                          groups_[group_of_[i]].material->initial_wave_speed());
-    dt /= std::sqrt(1 + bulk_q1_ * bulk_q1_) + bulk_q1_;
+      dt = std::min(dt, length_[i] * smallest_stretch(&F_[9 * i]) / points_.material(i).initial_wave_speed());
+    dt /= viscosity_.initial_step_factor();
     return Utilities::MPI::min(dt, discretization_->communicator());
   }
 
@@ -477,10 +465,10 @@ namespace shard::particles
   {
     double dt = 1e300;
     for (unsigned int i = 0; i < n_owned(); ++i)
-      dt = std::min(dt, length_[i] / groups_[group_of_[i]].material->initial_wave_speed());
+      dt = std::min(dt, length_[i] / points_.material(i).initial_wave_speed());
     // The linear bulk viscosity lowers the step from the first force evaluation on (see
     // add_internal_forces); start with that step, so that it does not change at step 1.
-    dt /= std::sqrt(1 + bulk_q1_ * bulk_q1_) + bulk_q1_;
+    dt /= viscosity_.initial_step_factor();
     return Utilities::MPI::min(dt, discretization_->communicator());
   }
 
@@ -542,24 +530,19 @@ namespace shard::particles
   void
   SpgForce::fail(const unsigned int i, const unsigned int step, const std::string &what) const
   {
-    throw fe::Instability("step " + std::to_string(step) + ": " + what + " at " + describe(i));
+    throw Instability("step " + std::to_string(step) + ": " + what + " at " + describe(i));
   }
 
   const double *
   SpgForce::state(const unsigned int i) const
   {
-    const auto &g = groups_[group_of_[i]];
-    return g.state.data() + std::size_t(i - g.begin) * g.n_slots;
+    return points_.state(i);
   }
 
   double
   SpgForce::state_value(const unsigned int i, const std::string &name) const
   {
-    const auto &g  = groups_[group_of_[i]];
-    const auto  it = std::find(g.slot_names.begin(), g.slot_names.end(), name);
-    return it == g.slot_names.end() ?
-             0. :
-             g.state[std::size_t(i - g.begin) * g.n_slots + (it - g.slot_names.begin())];
+    return points_.state_value(i, name);
   }
 
   ParticleForceResult
@@ -573,14 +556,7 @@ namespace shard::particles
     op_.deformation_gradient(u_.data(), Fnew_.data());
 
     // Batches of batch_size particles of one material; each writes only its own particles.
-    struct Batch
-    {
-      unsigned int group, begin, end;
-    };
-    std::vector<Batch> batches;
-    for (unsigned int gi = 0; gi < groups_.size(); ++gi)
-      for (unsigned int b0 = groups_[gi].begin; b0 < groups_[gi].end; b0 += batch_size)
-        batches.push_back({gi, b0, std::min(b0 + batch_size, groups_[gi].end)});
+    const auto &batches = points_.batches();
     // One partial per batch, combined in batch order below (the same for any thread count).
     struct Partial
     {
@@ -590,12 +566,13 @@ namespace shard::particles
     work_.resize(n_owned());
     std::vector<Partial> partial(batches.size());
     base::for_each_chunk(batches.size(), 1, [&](const unsigned int bi, unsigned int, unsigned int) {
-      auto              &g    = groups_[batches[bi].group];
       Partial           &part = partial[bi];
       const unsigned int b0   = batches[bi].begin;
       const unsigned int nb   = batches[bi].end - b0;
-      double de[6 * batch_size], J[batch_size], length[batch_size], c[batch_size], stress_old[6 * batch_size],
-        volume_mid[batch_size], F_inv[9 * batch_size];
+      // (The inputs of the material call are zeroed: GCC cannot see that the loop below fills
+      // the nb entries the call reads.)
+      double de[6 * batch_size] = {}, J[batch_size] = {}, length[batch_size] = {};
+      double c[batch_size], stress_old[6 * batch_size], volume_mid[batch_size], F_inv[9 * batch_size];
       for (unsigned int k = 0; k < nb; ++k)
         {
           const unsigned int i  = b0 + k;
@@ -627,50 +604,33 @@ namespace shard::particles
           for (unsigned int a = 0; a < 3; ++a)
             for (unsigned int b = 0; b < 3; ++b)
               W[a][b] = 0.5 * (L[3 * a + b] - L[3 * b + a]) / dt;
-          fe::hughes_winget_rotation(W, dt, R);
+          tensor::hughes_winget_rotation(W, dt, R);
           double *sig = &stress_[6 * i];
-          fe::rotate_symmetric(R, sig);
+          tensor::rotate_symmetric(R, sig);
           std::copy(sig, sig + 6, &stress_old[6 * k]);
           length[k]     = length_[i] * std::cbrt(J[k]);
           volume_mid[k] = particles_->volume(i) * det_m;
         }
 
-      materials::PointBatch batch;
-      batch.n                     = nb;
-      batch.dt                    = dt;
-      batch.strain_increment      = de;
-      batch.relative_volume       = J;
-      batch.characteristic_length = length;
-      batch.stress                = &stress_[6 * b0];
-      batch.state                 = g.state.data() + std::size_t(b0 - g.begin) * g.n_slots;
-      batch.wave_speed            = c;
-      g.material->update(batch);
+      points_.update(batches[bi], dt, de, J, length, stress_.data(), c);
 
       for (unsigned int k = 0; k < nb; ++k)
         {
           const unsigned int i   = b0 + k;
           const double      *sig = &stress_[6 * i];
           const double      *e   = &de[6 * k];
-          const double      *so  = &stress_old[6 * k];
-          double             work = 0;
-          for (unsigned int a = 0; a < 3; ++a)
-            work += (so[a] + sig[a]) * e[a] + 2. * (so[a + 3] + sig[a + 3]) * e[a + 3];
-          work *= 0.5 * volume_mid[k];
+          double work = materials::stress_work(&stress_old[6 * k], sig, e, volume_mid[k], materials::WorkOrder::pairs);
           if (!std::isfinite(work) || !std::isfinite(c[k]))
             fail(i, step, "non-finite stress (sigma_xx = " + std::to_string(sig[0]) + " Pa)");
-          // Bulk viscosity in compression (not stored; its work is dissipated into internal energy).
-          // Its work is booked like the stress work, with the mean of the q of both ends of the
-          // step (the central difference applies each force half to the step before and half to
-          // the step after it).
+          // Bulk viscosity in compression (not stored; its work is dissipated into internal
+          // energy, with the mean of the q of both ends of the step).
           const double trd = e[0] + e[1] + e[2];
-          const double q   = fe::bulk_viscosity(density_[i] / J[k], length[k], c[k], trd, dt, bulk_q1_, bulk_q2_);
-          work -= 0.5 * (q_[i] + q) * trd * volume_mid[k];
-          q_[i] = q;
-          work_[i] = work;
-          // The bulk viscosity lowers the stable step (LS-DYNA's form of the correction).
-          // Spacing for the step: the reference spacing times the smallest principal stretch.
+          const double q   = viscosity_.apply(density_[i] / J[k], length[k], c[k], trd, dt, volume_mid[k], q_[i], work);
+          work_[i]         = work;
+          // Step limit of the viscosity; the spacing is the reference spacing times the smallest
+          // principal stretch.
           const double spacing = length_[i] * smallest_stretch(&Fnew_[9 * i]);
-          const double dt_i    = fe::bulk_viscosity_step(spacing, c[k], trd, dt, bulk_q1_, bulk_q2_);
+          const double dt_i    = viscosity_.stable_step(spacing, c[k], trd, dt);
           if (dt_i < part.stable_dt)
             {
               part.stable_dt = dt_i;
@@ -724,15 +684,8 @@ namespace shard::particles
   SpgForce::memory_consumption() const
   {
     const auto bytes = [](const auto &v) { return v.capacity() * sizeof(v[0]); };
-    std::size_t b = sizeof(*this) - sizeof(op_) + op_.memory_consumption() + bytes(group_of_) + bytes(F_) +
-                    bytes(stress_) + bytes(q_) + bytes(density_) + bytes(length_) + bytes(dk_) + bytes(u_) +
-                    bytes(fk_) + bytes(Fnew_) + bytes(VP_) + bytes(work_) + groups_.capacity() * sizeof(Group);
-    for (const auto &g : groups_)
-      {
-        b += bytes(g.state) + g.slot_names.capacity() * sizeof(std::string);
-        for (const auto &n : g.slot_names)
-          b += n.capacity() > 15 ? n.capacity() + 1 : 0; // heap part beyond the small-string buffer
-      }
-    return b;
+    return sizeof(*this) - sizeof(op_) + op_.memory_consumption() + points_.memory_consumption() + bytes(F_) +
+           bytes(stress_) + bytes(q_) + bytes(density_) + bytes(length_) + bytes(dk_) + bytes(u_) + bytes(fk_) +
+           bytes(Fnew_) + bytes(VP_) + bytes(work_);
   }
 } // namespace shard::particles

@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/base/sections.h>
 #include <shard/time/central_difference.h>
 #include <shard/time/rigid_bodies.h>
 
@@ -14,10 +15,9 @@ namespace shard::time
   bool
   CentralDifference::declare_parameters(ParameterHandler &prm)
   {
-    if (declared_)
+    if (!first_declaration())
       return false;
-    declared_ = true;
-    prm.enter_subsection("J - Time integration");
+    prm.enter_subsection(sections::time_integration);
     prm.add_parameter("end time", end_time_, "Simulated end time. Unit: s. Range: > 0.", Patterns::Double(0));
     prm.add_parameter("safety factor", safety_factor_,
                       "Factor on the smallest element step L_e / c_e (LS-DYNA TSSFAC). Unit: 1. Range: (0, 1].",
@@ -51,7 +51,7 @@ namespace shard::time
   void
   CentralDifference::check_parameters(const base::PrmSource &source) const
   {
-    const std::string p = "J - Time integration/";
+    const std::string p = sections::time_integration + "/";
     if (!(end_time_ > 0))
       source.fail(p + "end time", std::to_string(end_time_), "must be > 0. Unit: s.");
     if (!(safety_factor_ > 0 && safety_factor_ <= 1))

@@ -133,6 +133,20 @@ namespace shard::base
      */
     virtual void
     check_parameters(const PrmSource &source) const = 0;
+
+  protected:
+    /// For an owner that declares all its keys in one round: true on the first call only.
+    bool
+    first_declaration()
+    {
+      if (declared_once_)
+        return false;
+      declared_once_ = true;
+      return true;
+    }
+
+  private:
+    bool declared_once_ = false;
   };
 
   /**

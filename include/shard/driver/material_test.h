@@ -218,7 +218,6 @@ namespace shard::driver
     base::PrmSource            source_;
     dealii::ParameterHandler   prm_;
     materials::MaterialLibrary materials_;
-    bool                       declared_ = false;
 
     std::string material_              = "steel";
     std::string path_                  = "unconfined compression";

@@ -8,8 +8,10 @@
  */
 #pragma once
 
+#include <shard/base/instability.h>
 #include <shard/base/parameters.h>
 #include <shard/materials/material_library.h>
+#include <shard/materials/point_states.h>
 #include <shard/mesh/discretization.h>
 
 #include <stdexcept>
@@ -18,13 +20,6 @@
 
 namespace shard::fe
 {
-  /// A run that went unstable: the message names step, place and quantity.
-  class Instability : public std::runtime_error
-  {
-  public:
-    using std::runtime_error::runtime_error;
-  };
-
   /// What one force evaluation returns besides the force.
   struct ForceResult
   {
@@ -171,8 +166,7 @@ namespace shard::fe
     const double *
     state(unsigned int e) const
     {
-      const auto &grp = groups_[group_of_[e]];
-      return grp.state.data() + static_cast<std::size_t>(e - grp.begin) * grp.n_slots;
+      return points_.state(e);
     }
 
     /**
@@ -182,11 +176,10 @@ namespace shard::fe
     std::vector<double>
     checkpoint_values(unsigned int e) const
     {
-      const auto         &grp = groups_[group_of_[e]];
       std::vector<double> out(stress_.begin() + 6 * e, stress_.begin() + 6 * e + 6);
       out.push_back(q_[e]);
       out.insert(out.end(), hourglass_.begin() + 12 * e, hourglass_.begin() + 12 * e + 12);
-      out.insert(out.end(), state(e), state(e) + grp.n_slots);
+      out.insert(out.end(), state(e), state(e) + points_.n_slots(e));
       return out;
     }
 
@@ -194,13 +187,12 @@ namespace shard::fe
     bool
     set_checkpoint_values(unsigned int e, const double *values, std::size_t n)
     {
-      auto &grp = groups_[group_of_[e]];
-      if (n != 19 + grp.n_slots)
+      if (n != 19 + points_.n_slots(e))
         return false;
       std::copy(values, values + 6, stress_.begin() + 6 * e);
       q_[e] = values[6];
       std::copy(values + 7, values + 19, hourglass_.begin() + 12 * e);
-      std::copy(values + 19, values + n, grp.state.begin() + static_cast<std::size_t>(e - grp.begin) * grp.n_slots);
+      std::copy(values + 19, values + n, points_.state(e));
       return true;
     }
 
@@ -208,7 +200,7 @@ namespace shard::fe
     const materials::Material &
     material(unsigned int e) const
     {
-      return *groups_[group_of_[e]].material;
+      return points_.material(e);
     }
 
     /**
@@ -220,29 +212,17 @@ namespace shard::fe
     {
       std::size_t bytes = sizeof(*this);
       const auto  add   = [&](const auto &v) { bytes += v.capacity() * sizeof(v[0]); };
-      add(nodes_), add(cell_index_), add(body_), add(element_of_cell_), add(group_of_), add(volume0_);
+      add(nodes_), add(cell_index_), add(body_), add(element_of_cell_), add(volume0_);
       add(element_dt_), add(stress_), add(q_), add(hourglass_);
-      for (const auto &g : groups_)
-        add(g.state), bytes += sizeof(g);
-      return bytes;
+      return bytes + points_.memory_consumption();
     }
 
   private:
-    struct Group
-    {
-      const materials::Material *material = nullptr;
-      unsigned int               begin = 0, end = 0;
-      unsigned int               n_slots = 0;
-      std::vector<std::string>   slot_names;
-      std::vector<double>        state;
-    };
-
     std::string hourglass_type_        = "viscous";
     bool        viscous_               = true;
     double      hourglass_coefficient_ = 0.1;
-    double      bulk_q1_               = 0.;
-    double      bulk_q2_               = 0.;
-    bool   declared_              = false;
+    /// Bulk viscosity Q1, Q2 (`bulk viscosity linear`, `quadratic`; default 0: off).
+    materials::BulkViscosity viscosity_;
 
     const mesh::Discretization       *discretization_ = nullptr;
     const materials::MaterialLibrary *library_        = nullptr;
@@ -250,25 +230,18 @@ namespace shard::fe
     std::vector<unsigned int>   cell_index_; // active cell index
     std::vector<unsigned int>   body_;
     std::vector<int>            element_of_cell_;
-    std::vector<unsigned int>   group_of_;   // group index per element
     std::vector<double>         volume0_;
     std::vector<double>         element_dt_; // L_e / c_e of the last force evaluation
     std::vector<double>         stress_;     // 6 per element
     std::vector<double>         q_;          // bulk viscosity pressure of the last evaluation, per element
     std::vector<double>         hourglass_;  // 12 per element: hourglass force per mode and direction (both forms)
-    std::vector<Group>          groups_;
-
-    /// Elements [begin, end) of material group @p group: one material call.
-    struct Batch
-    {
-      unsigned int group, begin, end;
-    };
-    std::vector<Batch>        batches_;        // in element order
+    /// Material groups, history and batches of the elements (one point per element).
+    materials::PointStates points_;
     unsigned int              batches_per_block_ = 1;
     std::vector<unsigned int> block_order_;    // blocks of consecutive batches, colour by colour
     std::vector<unsigned int> colour_offsets_; // colour c: block_order_[colour_offsets_[c] .. [c + 1])
 
-    /// Cuts the groups into batches, the batches into blocks of consecutive batches, and colours
+    /// Cuts the batches into blocks of consecutive batches, and colours
     /// the blocks so that no two blocks of one colour share a node (the blocks of a colour
     /// scatter their forces at the same time).
     void

@@ -105,6 +105,17 @@ namespace shard::materials
     virtual std::array<double, 2>
     elastic_moduli() const = 0;
 
+    /**
+     * @brief Stored elastic energy density estimate (J per reference m^3) of a point with Cauchy
+     * stress @p stress (xx, yy, zz, yz, xz, xy) and relative volume @p jacobian: K (ln J)^2 / 2
+     * from the volume (the pressure of the elastic and von Mises models is K ln J) plus
+     * s : s / (4 G) from the deviatoric stress, with K, G of elastic_moduli(). The conversion
+     * of elements to particles books the change of this estimate (doc/manual/hybrid.md).
+     * Virtual so that a model with another stored-energy form can give its own.
+     */
+    virtual double
+    elastic_energy_density(const double *stress, double jacobian) const;
+
     /// Names of the history slots, in storage order.
     virtual std::vector<std::string>
     state_slot_names() const = 0;

@@ -135,7 +135,6 @@ namespace shard::output
     unsigned int keep_     = 2;
     std::string  directory_text_;
     std::string  restart_from_;
-    bool         declared_ = false;
 
     MPI_Comm                        comm_ = MPI_COMM_SELF;
     std::string                     directory_, fingerprint_, manifest_;

@@ -130,7 +130,6 @@ namespace shard::output
     bool         fields_            = true;
     unsigned int dust_particles_    = 8;
     std::string  debris_axis_       = "0, 0, -1";
-    bool         declared_          = false;
 
     const mesh::Discretization                *discretization_ = nullptr;
     const fe::HexForce                        *hex_            = nullptr;

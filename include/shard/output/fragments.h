@@ -153,6 +153,15 @@ namespace shard::output
   summarize(const std::vector<Fragment> &fragments);
 
   /**
+   * @brief The `fragments` object of summary.json (one line, no trailing comma): time, count,
+   * mass, the classification settings and the summary of @p fragments (after classify()), with
+   * 17 significant digits so that the masses add up to the total to round-off.
+   */
+  std::string
+  summary_json(const std::vector<Fragment> &fragments, double time, unsigned int dust_particles,
+               const std::array<double, 3> &axis);
+
+  /**
    * @brief Finds the fragments: two nodes are connected when an intact element holds both or
    * when one particle lies in the RK stencil of the other (a bond). Bodies never share nodes,
    * so without failure every connected body is one fragment. prepare() joins the owned and

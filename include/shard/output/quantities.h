@@ -98,7 +98,6 @@ namespace shard::output
       bool                     owns_node = false;
     };
     std::string                   text_;
-    bool                          declared_ = false;
     std::vector<Item>             items_;
     const mesh::Discretization   *discretization_ = nullptr;
     const fe::HexForce           *hex_            = nullptr;

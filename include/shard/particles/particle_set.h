@@ -147,6 +147,21 @@ namespace shard::particles
       return spacing_[i];
     }
 
+    /// Support radii a_k = c h_k of owned particle @p i (m; c = `dilation`).
+    Point3
+    support_radius(unsigned int i) const
+    {
+      return rk_.support_radius(spacing_[i]);
+    }
+
+    /// Mean support radius c (h_x + h_y + h_z) / 3 of owned particle @p i (m).
+    double
+    mean_support_radius(unsigned int i) const
+    {
+      const auto &h = spacing_[i];
+      return rk_.dilation * (h[0] + h[1] + h[2]) / 3.;
+    }
+
     /// Reference position of owned particle @p i.
     const Point3 &
     position(unsigned int i) const
@@ -323,7 +338,6 @@ namespace shard::particles
     std::vector<std::string> body_names_;
     std::string              support_text_ = "box";
     RkParameters             rk_;
-    bool                     declared_ = false;
     bool                     active_   = false;
 
     std::vector<bool>               particle_body_;

@@ -85,6 +85,13 @@ namespace shard::particles
     /// Rows whose scaled moment matrix has a reciprocal 2-norm condition number below this use Shepard.
     double rcond_limit = 1e-8;
 
+    /// The support radii a_k = c h_k of a point with spacings @p h (m): the one place a = c h is formed.
+    Point3
+    support_radius(const Point3 &h) const
+    {
+      return {{dilation * h[0], dilation * h[1], dilation * h[2]}};
+    }
+
     /**
      * @brief Throws std::invalid_argument naming the key when a value is out of range:
      * dilation < 1 (or not finite), rcond_limit outside [0, 1).

@@ -9,8 +9,10 @@
 #pragma once
 
 #include <shard/base/parameters.h>
-#include <shard/fe/hex_force.h>
+#include <shard/base/instability.h>
 #include <shard/materials/material_library.h>
+#include <shard/materials/point_states.h>
+#include <shard/particles/consistent_correction.h>
 #include <shard/particles/particle_set.h>
 #include <shard/particles/spg_operator.h>
 
@@ -189,7 +191,7 @@ namespace shard::particles
      * entries; compress(add) afterwards) and updates the particle state.
      * @param d coefficients at the end of the step, ghost values set
      * @param dt step size
-     * @throws fe::Instability on an inverted particle (det F <= 0) or a non-finite stress.
+     * @throws Instability on an inverted particle (det F <= 0) or a non-finite stress.
      */
     ParticleForceResult
     add_internal_forces(const mesh::Vector &d, double dt, unsigned int step, mesh::Vector &f);
@@ -247,7 +249,7 @@ namespace shard::particles
     const materials::Material &
     material(unsigned int i) const
     {
-      return *groups_[group_of_[i]].material;
+      return points_.material(i);
     }
 
     /// The particle set.
@@ -281,24 +283,16 @@ namespace shard::particles
     memory_consumption() const;
 
   private:
-    struct Group
-    {
-      const materials::Material *material = nullptr;
-      unsigned int               begin = 0, end = 0, n_slots = 0;
-      std::vector<std::string>   slot_names;
-      std::vector<double>        state;
-    };
-
     unsigned int       smallest_step_      = 0;
-    double             bulk_q1_            = 0.06;
-    double             bulk_q2_            = 1.5;
+    /// Bulk viscosity Q1, Q2 (`bulk viscosity linear`, `quadratic`).
+    materials::BulkViscosity viscosity_{0.06, 1.5};
     std::string        smoothing_text_     = "two-level";
     std::string        stabilization_text_ = "residual";
     std::string        correction_text_    = "consistent";
     /// Aggregate edge of the correction solve's coarse space, in mean spacings (0: none).
     double correction_coarse_size_ = 3;
     FormulationOptions options_;
-    bool               declared_ = false, active_ = false;
+    bool               active_ = false;
     /// Whether u, F, VP, the force and the operator's g and residual weights are those of the
     /// last add_internal_forces() at the present d (a partial refresh may start from them).
     bool evaluated_ = false;
@@ -307,8 +301,8 @@ namespace shard::particles
     const mesh::Discretization  *discretization_ = nullptr;
     SpgOperator                  op_;
     CorrectionSolve              correction_solve_;
-    std::vector<Group>           groups_;
-    std::vector<unsigned int>    group_of_;
+    /// Material groups, history and batches of the owned particles.
+    materials::PointStates       points_;
     std::vector<double>          F_, stress_, q_, density_, length_;
     std::vector<double>          volume_factor_; // c_I: J = c_I det F (jumps of det F at rebuilt rows)
     mutable std::vector<double>  dk_, u_, fk_, Fnew_, VP_;

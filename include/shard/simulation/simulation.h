@@ -16,13 +16,18 @@
 #include <shard/mesh/discretization.h>
 #include <shard/output/field_output.h>
 #include <shard/output/fragments.h>
+#include <shard/output/history.h>
 #include <shard/output/quantities.h>
+#include <shard/base/progress.h>
+#include <shard/simulation/energy_balance.h>
+#include <shard/simulation/explicit_step.h>
 #include <shard/particles/bond_failure.h>
 #include <shard/particles/particle_set.h>
 #include <shard/particles/spg_force.h>
 #include <shard/time/central_difference.h>
 
 #include <array>
+#include <chrono>
 #include <cstdint>
 #include <fstream>
 #include <string>
@@ -101,7 +106,6 @@ namespace shard
     base::PrmSource              source_;
     dealii::ParameterHandler     prm_;
     std::string                  title_ = "shard scene";
-    bool                         declared_ = false;
 
     // Components in dependency order.
     mesh::Discretization         discretization_;
@@ -119,35 +123,17 @@ namespace shard
     output::Fragments            fragments_;
     output::Checkpoint           checkpoint_;
 
-    // State vectors, all with the one layout of Discretization.
-    mesh::Vector d_, v_, v_now_, f_, f_ext_, mass_, d_phys_;
+    // What the loop advances, the energy accounts, the timers and the history table.
+    StepState            state_;
+    EnergyBalance        energy_;
+    base::PhaseTimes     times_;
+    output::HistoryTable history_;
+    /// The phases 1 to 9 of the step (phase 10, record, is below).
+    ExplicitStep explicit_step_;
 
-    // Bookkeeping.
-    time::LocalBalance balance_;
-    double             internal_energy_ = 0, hourglass_energy_ = 0;
-    double             stabilization_energy_ = 0, filter_work_ = 0;
-    /// Energy changed by conversions (history averaging and the jump of the stabilization
-    /// energy), summed over ranks (J); booked in the internal energy and as a source.
-    double             conversion_energy_ = 0;
-    /// Elastic part of conversion_energy_ on this rank (J), included in the internal energy.
-    double             conversion_elastic_ = 0;
-    /// Jump of the stabilization energy when bonds break, this rank (J); a source like the
-    /// conversion energy.
-    double             bond_energy_ = 0;
-    /// Work space of the bond tests (normalized failure value and critical stretch per particle).
-    mesh::Vector       bond_values_;
-    double             reference_energy_ = 0, initial_energy_ = 0;
-    double             energy_floor_ = 0; // 1e-14 M c^2: the smallest reference of the energy error
-    double             t_ = 0, dt_ = 0, dt_next_ = 0, stable_dt_ = 0;
-    unsigned int       step_ = 0;
     unsigned int       physical_step_ = ~0u;
-    double             energy_error_ = 0, max_energy_error_ = 0;
     std::vector<double> q_final_, q_min_, q_max_;
-    std::ofstream      history_;
-    std::array<double, 11> phase_time_{};
-    /// Element and particle force evaluations on this rank (summed over steps), and their
-    /// sums over ranks after the run, for the per-step rates.
-    double                element_steps_ = 0, particle_steps_ = 0;
+    /// Element and particle force evaluations summed over ranks after the run.
     std::array<double, 2> work_steps_{};
     /// Partition (doc/performance.md, MPI scaling): owned elements and particles per rank at
     /// set-up, the work imbalance max/mean of (elements + particle weight x particles) after
@@ -160,8 +146,39 @@ namespace shard
     void
     measure_partition();
 
+    /// Phase 10 for one history row: reduces the energy terms, evaluates the quantities, adds
+    /// the row and stops the run if a value is not finite or the energy error exceeds its limit.
     void
     record();
+    /// Initial state (no restart): K0, kinematic conditions at t = 0, the first kick and the
+    /// step-0 row. @return false if step 0 failed its checks (nothing written). @note Collective.
+    bool
+    start(RunResult &result);
+    /// Opens history.csv, writes parameters.prm and, for a new run, the output of step 0.
+    void
+    open_output(bool restarted);
+    /// Phase 10 of a step: history row, fields, progress line, checkpoint. @return @p last.
+    bool
+    record_step(bool last, RunResult &result);
+    /// Whether the run has reached the end time or the step limit.
+    bool
+    at_end() const;
+    /// Sets the status "max steps reached" when the step limit stopped the run before the end time.
+    void
+    record_status(RunResult &result) const;
+    /// After the loop: fragment statistics, plots, summary.json and the phase table.
+    void
+    finish(const RunResult &result, double wall_time);
+    /// fragment_statistics.csv of the last fragments (rank 0).
+    void
+    write_fragment_statistics() const;
+    /// Progress of the loop: wall clock and pace of the last progress line.
+    struct Progress
+    {
+      std::chrono::steady_clock::time_point last, loop_start;
+      double                                start_time = 0;
+      base::ProgressEstimate                pace;
+    } progress_;
     /// Stops with an input error if a rigid body is (or may become) particles. @note Collective.
     void
     check_rigid_bodies() const;
@@ -191,10 +208,6 @@ namespace shard
     truncate_tables() const;
     /// Sizes of history.csv and fragments.csv at the checkpoint read (bytes).
     unsigned long long history_bytes_ = 0, fragments_bytes_ = 0;
-    /// "; <condition>/function = ... is not finite: ..." for a non-finite row, or "". Collective.
-    std::string
-    non_finite_source() const;
-    std::string        pending_rows_; // history rows recorded before history.csv is opened (step 0)
     std::uint64_t      history_hash_ = 0, fragments_hash_ = 0; // FNV-1a of those bytes at the checkpoint
     /// The fastest node or particle of all ranks, for the energy-limit diagnostic.
     struct FastestNode
@@ -215,13 +228,6 @@ namespace shard
     fastest_node(const mesh::Vector &v) const;
     /// Largest speed of the input velocity field, before the kinematic conditions at t = 0 (m/s).
     double initial_max_speed_ = 0;
-    /// Global stable step before the first step, and the particles' own step of the last force
-    /// evaluation (s).
-    double first_stable_dt_ = 0, particle_dt_ = 1e300;
-    /// The diagnostic of a collapsed step: the step, the limit and the element or particle with
-    /// the smallest step on any rank. @note Collective.
-    std::string
-    collapsed_step_message() const;
     /**
      * @brief Converts the local elements @p elements of every rank to particles at the end of
      * a step: history transfer, particle set, stencils and ghost set rebuilt, vectors moved to
@@ -235,7 +241,7 @@ namespace shard
     const mesh::Vector &
     physical_displacement();
     void
-    write_summary(const RunResult &result, double wall_time) const;
+    write_summary(const RunResult &result, double wall_time, const base::PhaseTimes::Times &max_time) const;
     /// With particles: appends the fragments now to fragments.csv and keeps them for the
     /// statistics at the end (doc/manual/hybrid.md, "Fragments"). @note Collective.
     void

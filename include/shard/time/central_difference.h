@@ -150,7 +150,6 @@ namespace shard::time
     unsigned int max_steps_          = 0;
     double       energy_error_limit_ = 0.1;
     double       min_step_fraction_  = 0.01;
-    bool         declared_           = false;
     mesh::Vector acceleration_, v_old_;
   };
 } // namespace shard::time

@@ -2,6 +2,7 @@
 // Unit tests of the uniform-strain hexahedron kernels (include/shard/fe/hex_kernel.h) against
 // closed forms and computations written out here (doc/manual/fe.md, "Tests"). Node order is
 // deal.II's lexicographic order: node a at reference corner ((a & 1), (a >> 1) & 1, (a >> 2) & 1).
+#include <shard/base/tensor.h>
 #include <shard/fe/hex_kernel.h>
 
 #include <gtest/gtest.h>
@@ -13,6 +14,7 @@
 namespace
 {
   using namespace shard::fe;
+  using namespace shard::tensor;
 
   using Mat = double[3][3];
 

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 // Largest principal value used by the principal stress and strain bond criteria
-// (fe::symmetric_eigenvalues, shared with the particles' stable step).
-#include <shard/fe/hex_kernel.h>
+// (tensor::symmetric_eigenvalues, shared with the particles' stable step).
+#include <shard/base/tensor.h>
 
 #include <gtest/gtest.h>
 
@@ -13,7 +13,7 @@ namespace
   double
   largest_eigenvalue(const double *s)
   {
-    return shard::fe::symmetric_eigenvalues(s)[2];
+    return shard::tensor::symmetric_eigenvalues(s)[2];
   }
 
   TEST(BondFailure, LargestEigenvalueDiagonal)
@@ -52,7 +52,7 @@ namespace
               S[i][j] += Q[i][k] * d[k] * Q[j][k];
         const double s[6] = {S[0][0], S[1][1], S[2][2], S[1][2], S[0][2], S[0][1]};
         EXPECT_NEAR(largest_eigenvalue(s), 4., 1e-12);
-        const auto all = shard::fe::symmetric_eigenvalues(s);
+        const auto all = shard::tensor::symmetric_eigenvalues(s);
         EXPECT_NEAR(all[0], -2., 1e-12);
         EXPECT_NEAR(all[1], 1., 1e-12);
         // F = Q diag(1.2, 0.9, 1.0): principal stretches 0.9, 1.0, 1.2 whatever Q is.
@@ -61,7 +61,7 @@ namespace
         for (int i = 0; i < 3; ++i)
           for (int j = 0; j < 3; ++j)
             F[3 * i + j] = Q[i][j] * stretch[j];
-        const auto l = shard::fe::principal_stretches(F);
+        const auto l = shard::tensor::principal_stretches(F);
         EXPECT_NEAR(l[0], 0.9, 1e-12);
         EXPECT_NEAR(l[1], 1.0, 1e-12);
         EXPECT_NEAR(l[2], 1.2, 1e-12);

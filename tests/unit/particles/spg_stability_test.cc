@@ -9,6 +9,7 @@
 // - the gradient correction meets the integration constraint.
 // The numbers are printed for doc/theory/spg_stabilization.md.
 #include <shard/particles/neighbor_build.h>
+#include <shard/particles/consistent_correction.h>
 #include <shard/particles/spg_operator.h>
 
 #include <Eigen/Dense>

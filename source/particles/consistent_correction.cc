@@ -1,0 +1,637 @@
+// SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/base/parallel.h>
+#include <shard/particles/consistent_correction.h>
+
+#include <Eigen/Dense>
+#include <Eigen/CholmodSupport>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <iterator>
+#include <map>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <unordered_map>
+
+namespace shard::particles
+{
+  ConsistentCorrection::ConsistentCorrection(const LocalStencils &stencils, const std::vector<Point3> &position_j,
+                                             const double *volume)
+    : st_(stencils)
+    , n_i_(stencils.n_i)
+    , n_j_(stencils.n_j)
+    , volume_(volume, volume + stencils.n_i)
+  {
+    if (position_j.size() != n_j_)
+      throw std::invalid_argument("ConsistentCorrection: one position per particle J expected");
+    const Stencil &g = st_.g;
+    basis_.resize(4 * g.columns.size());
+    inverse_moment_.resize(16 * n_i_);
+    row_length_.resize(n_i_);
+    for (unsigned int i = 0; i < n_i_; ++i)
+      {
+        const Point3 &xi = position_j[i];
+        double        l  = 0;
+        for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+          for (unsigned int c = 0; c < 3; ++c)
+            l = std::max(l, std::abs(position_j[g.columns[e]][c] - xi[c]));
+        l = l > 0 ? l : 1.;
+        row_length_[i] = l;
+        double m[16] = {};
+        for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+          {
+            double *p = &basis_[4 * e];
+            p[0]      = 1;
+            for (unsigned int c = 0; c < 3; ++c)
+              p[c + 1] = (position_j[g.columns[e]][c] - xi[c]) / l;
+            for (unsigned int r = 0; r < 4; ++r)
+              for (unsigned int c = 0; c < 4; ++c)
+                m[4 * r + c] += p[r] * p[c];
+          }
+        // A stencil that does not span 3-D (a Shepard fallback row) is left uncorrected.
+        if (!invert_spd4(m, &inverse_moment_[16 * i]))
+          std::fill(&inverse_moment_[16 * i], &inverse_moment_[16 * i] + 16, std::nan(""));
+      }
+  }
+
+  void
+  ConsistentCorrection::row_fit(const unsigned int i, const double *lambda, double *mu) const
+  {
+    const Stencil &g = st_.g;
+    double         s[12] = {};
+    for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+      {
+        const double *p = &basis_[4 * e];
+        const double *l = &lambda[3 * g.columns[e]];
+        for (unsigned int r = 0; r < 4; ++r)
+          for (unsigned int c = 0; c < 3; ++c)
+            s[3 * r + c] += p[r] * l[c];
+      }
+    const double *inv = &inverse_moment_[16 * i];
+    for (unsigned int r = 0; r < 4; ++r)
+      for (unsigned int c = 0; c < 3; ++c)
+        mu[3 * r + c] = inv[4 * r] * s[c] + inv[4 * r + 1] * s[3 + c] + inv[4 * r + 2] * s[6 + c] +
+                        inv[4 * r + 3] * s[9 + c];
+  }
+
+  void
+  ConsistentCorrection::defect(const double *area, double *r) const
+  {
+    const Stencil &g = st_.g;
+    std::fill(r, r + 3 * n_j_, 0.);
+    for (unsigned int i = 0; i < n_i_; ++i)
+      {
+        for (unsigned int c = 0; c < 3; ++c)
+          r[3 * i + c] += area[3 * i + c];
+        for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+          for (unsigned int c = 0; c < 3; ++c)
+            r[3 * g.columns[e] + c] -= volume_[i] * g.grad[3 * e + c];
+      }
+  }
+
+  void
+  ConsistentCorrection::apply(const double *lambda, double *y) const
+  {
+    const Stencil &g = st_.g;
+    std::fill(y, y + 3 * n_j_, 0.);
+    double mu[12];
+    for (unsigned int i = 0; i < n_i_; ++i)
+      {
+        if (std::isnan(inverse_moment_[16 * i]))
+          continue;
+        row_fit(i, lambda, mu);
+        const double w = volume_[i] * volume_[i];
+        for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+          {
+            const double *p = &basis_[4 * e];
+            const double *l = &lambda[3 * g.columns[e]];
+            for (unsigned int c = 0; c < 3; ++c)
+              y[3 * g.columns[e] + c] +=
+                w * (l[c] - p[0] * mu[c] - p[1] * mu[3 + c] - p[2] * mu[6 + c] - p[3] * mu[9 + c]);
+          }
+      }
+  }
+
+  void
+  ConsistentCorrection::diagonal(double *diag) const
+  {
+    const Stencil &g = st_.g;
+    std::fill(diag, diag + 3 * n_j_, 0.);
+    for (unsigned int i = 0; i < n_i_; ++i)
+      {
+        if (std::isnan(inverse_moment_[16 * i]))
+          continue;
+        const double *inv = &inverse_moment_[16 * i];
+        const double  w   = volume_[i] * volume_[i];
+        for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+          {
+            const double *p  = &basis_[4 * e];
+            double        pp = 0; // (P_I)_JJ = p_J^T M^-1 p_J
+            for (unsigned int r = 0; r < 4; ++r)
+              for (unsigned int c = 0; c < 4; ++c)
+                pp += p[r] * inv[4 * r + c] * p[c];
+            for (unsigned int c = 0; c < 3; ++c)
+              diag[3 * g.columns[e] + c] += w * (1 - pp);
+          }
+      }
+  }
+
+  std::vector<double>
+  ConsistentCorrection::corrected_gradients(const double *lambda) const
+  {
+    const Stencil      &g = st_.g;
+    limited_rows_          = 0;
+    std::vector<double> out(g.grad.begin(), g.grad.begin() + 3 * std::size_t(g.row_offsets[n_i_]));
+    double              mu[12];
+    for (unsigned int i = 0; i < n_i_; ++i)
+      {
+        if (std::isnan(inverse_moment_[16 * i]))
+          continue;
+        row_fit(i, lambda, mu);
+        // Limiter: no entry of a row's correction exceeds max_correction_ratio / l_I (l_I the
+        // largest coordinate distance in the stencil, the spacing on a lattice). Scaling the
+        // row's correction keeps linear exactness (its sums vanish) and gives up part of the
+        // integration constraint at that row only.
+        const auto correction = [&](const unsigned int e, const unsigned int c) {
+          const double *p = &basis_[4 * e];
+          const double *l = &lambda[3 * g.columns[e]];
+          return volume_[i] * (l[c] - p[0] * mu[c] - p[1] * mu[3 + c] - p[2] * mu[6 + c] - p[3] * mu[9 + c]);
+        };
+        double largest = 0;
+        for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+          for (unsigned int c = 0; c < 3; ++c)
+            largest = std::max(largest, std::abs(correction(e, c)));
+        const double bound = max_correction_ratio / row_length_[i];
+        const double scale = largest > bound ? bound / largest : 1.;
+        if (scale < 1.)
+          ++limited_rows_;
+        for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+          for (unsigned int c = 0; c < 3; ++c)
+            out[3 * e + c] += scale * correction(e, c);
+      }
+    return out;
+  }
+
+  std::vector<CoarseEntry>
+  ConsistentCorrection::coarse_operator(const CoarseFunctions &functions) const
+  {
+    const Stencil &g = st_.g;
+    struct Block
+    {
+      std::array<double, 16> v{};
+      unsigned char          rows = 0, columns = 0;
+    };
+    std::unordered_map<std::uint64_t, Block> blocks;
+    // Per row: the aggregates of its stencil (first function, count, first column in T).
+    std::vector<unsigned int> agg_first, agg_column;
+    std::vector<unsigned char> agg_count;
+    std::vector<double>       t, u, d; // T (4 x n_col), M^-1 T, diagonal blocks (16 per aggregate)
+    std::vector<unsigned int> entry_agg;
+    for (unsigned int i = 0; i < n_i_; ++i)
+      {
+        if (std::isnan(inverse_moment_[16 * i]))
+          continue;
+        agg_first.clear();
+        agg_count.clear();
+        agg_column.clear();
+        entry_agg.clear();
+        unsigned int n_col = 0;
+        for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+          {
+            const unsigned int f = functions.first[g.columns[e]];
+            unsigned int       a = 0;
+            while (a < agg_first.size() && agg_first[a] != f)
+              ++a;
+            if (a == agg_first.size())
+              {
+                agg_first.push_back(f);
+                agg_count.push_back(functions.count[g.columns[e]]);
+                agg_column.push_back(n_col);
+                n_col += agg_count.back();
+              }
+            entry_agg.push_back(a);
+          }
+        if (agg_first.size() < 2)
+          continue;
+        t.assign(4 * n_col, 0.);
+        d.assign(16 * agg_first.size(), 0.);
+        for (unsigned int e = g.row_offsets[i], k = 0; e < g.row_offsets[i + 1]; ++e, ++k)
+          {
+            const unsigned int a   = entry_agg[k];
+            const unsigned int j   = g.columns[e];
+            const double       z[4] = {1., functions.phi[3 * j], functions.phi[3 * j + 1], functions.phi[3 * j + 2]};
+            const double      *p   = &basis_[4 * e];
+            const unsigned int n   = agg_count[a];
+            for (unsigned int r = 0; r < n; ++r)
+              {
+                for (unsigned int c = 0; c < n; ++c)
+                  d[16 * a + 4 * r + c] += z[r] * z[c];
+                for (unsigned int q = 0; q < 4; ++q)
+                  t[n_col * q + agg_column[a] + r] += p[q] * z[r];
+              }
+          }
+        const double *inv = &inverse_moment_[16 * i];
+        u.assign(4 * n_col, 0.);
+        for (unsigned int q = 0; q < 4; ++q)
+          for (unsigned int s = 0; s < 4; ++s)
+            for (unsigned int c = 0; c < n_col; ++c)
+              u[n_col * q + c] += inv[4 * q + s] * t[n_col * s + c];
+        const double w = volume_[i] * volume_[i];
+        for (unsigned int a = 0; a < agg_first.size(); ++a)
+          for (unsigned int b = 0; b < agg_first.size(); ++b)
+            {
+              Block &blk  = blocks[(std::uint64_t(agg_first[a]) << 32) | agg_first[b]];
+              blk.rows    = agg_count[a];
+              blk.columns = agg_count[b];
+              for (unsigned int r = 0; r < agg_count[a]; ++r)
+                for (unsigned int c = 0; c < agg_count[b]; ++c)
+                  {
+                    double v = a == b ? d[16 * a + 4 * r + c] : 0.;
+                    for (unsigned int q = 0; q < 4; ++q)
+                      v -= t[n_col * q + agg_column[a] + r] * u[n_col * q + agg_column[b] + c];
+                    blk.v[4 * r + c] += w * v;
+                  }
+            }
+      }
+    std::vector<CoarseEntry> out;
+    out.reserve(16 * blocks.size());
+    for (const auto &[key, blk] : blocks)
+      for (unsigned int r = 0; r < blk.rows; ++r)
+        for (unsigned int c = 0; c < blk.columns; ++c)
+          out.push_back({static_cast<unsigned int>(key >> 32) + r, static_cast<unsigned int>(key & 0xffffffffu) + c,
+                         blk.v[4 * r + c]});
+    std::sort(out.begin(), out.end(), [](const CoarseEntry &x, const CoarseEntry &y) {
+      return x.row != y.row ? x.row < y.row : x.column < y.column;
+    });
+    return out;
+  }
+
+  namespace
+  {
+    /**
+     * The additive coarse correction of the correction solve: aggregates of owned particles
+     * (cubes of edge H per component), their constant and linear functions, E = Z^T S Z assembled
+     * over all ranks and factorized (CHOLMOD, supernodal Cholesky) on every rank.
+     */
+    class CoarseCorrection
+    {
+    public:
+      CoarseCorrection(const ConsistentCorrection &correction, const std::vector<Point3> &position_j,
+                       const std::vector<unsigned int> &component, const double size, const CorrectionExchange &exchange)
+        : exchange_(exchange)
+        , n_owned_(component.size())
+      {
+        const unsigned int n_j = correction.n_j();
+        // The edge H: size times the mean spacing (cube root of the mean volume), over all ranks.
+        std::vector<double> totals{0., double(n_owned_)};
+        for (unsigned int i = 0; i < correction.n_i(); ++i)
+          totals[0] += correction.volume(i);
+        exchange.sum(totals);
+        const double h = totals[1] > 0 ? std::cbrt(totals[0] / totals[1]) : 1.;
+        const double H = size * h;
+
+        // Aggregates of the owned particles, numbered in the order of their cube (deterministic).
+        std::vector<std::array<long long, 4>>             key(n_owned_);
+        std::map<std::array<long long, 4>, unsigned int> index;
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          {
+            key[i] = {{static_cast<long long>(component[i]), 0, 0, 0}};
+            for (unsigned int c = 0; c < 3; ++c)
+              key[i][c + 1] = static_cast<long long>(std::floor(position_j[i][c] / H));
+            index.emplace(key[i], 0u);
+          }
+        {
+          unsigned int n = 0;
+          for (auto &entry : index)
+            entry.second = n++;
+          n_aggregates_ = n;
+        }
+        std::vector<unsigned int> aggregate(n_owned_);
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          aggregate[i] = index.at(key[i]);
+        // Per aggregate: centroid and principal directions; a direction is kept when its
+        // variance is at least 1 % of the largest one and the aggregate has 4 particles or more.
+        std::vector<Eigen::Vector3d> centroid(n_aggregates_, Eigen::Vector3d::Zero());
+        std::vector<Eigen::Matrix3d> moment(n_aggregates_, Eigen::Matrix3d::Zero());
+        std::vector<unsigned int>    members(n_aggregates_, 0);
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          {
+            centroid[aggregate[i]] += Eigen::Vector3d(position_j[i][0], position_j[i][1], position_j[i][2]);
+            ++members[aggregate[i]];
+          }
+        for (unsigned int a = 0; a < n_aggregates_; ++a)
+          centroid[a] /= members[a];
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          {
+            const Eigen::Vector3d x =
+              Eigen::Vector3d(position_j[i][0], position_j[i][1], position_j[i][2]) - centroid[aggregate[i]];
+            moment[aggregate[i]] += x * x.transpose();
+          }
+        std::vector<Eigen::Matrix3d> scaled(n_aggregates_, Eigen::Matrix3d::Zero()); // rows: v_k / sigma_k
+        std::vector<unsigned int>    count(n_aggregates_, 1), local_first(n_aggregates_, 0);
+        unsigned int                 n_local = 0;
+        for (unsigned int a = 0; a < n_aggregates_; ++a)
+          {
+            local_first[a] = n_local;
+            if (members[a] >= 4)
+              {
+                const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(moment[a] / members[a]);
+                const double largest = eig.eigenvalues()(2);
+                for (int k = 2; k >= 0; --k)
+                  if (largest > 0 && eig.eigenvalues()(k) >= 1e-2 * largest)
+                    scaled[a].row(count[a]++ - 1) = eig.eigenvectors().col(k).transpose() / std::sqrt(eig.eigenvalues()(k));
+              }
+            n_local += count[a];
+          }
+        // Global numbering: the functions of the ranks before this one come first.
+        unsigned int offset = 0;
+        n_functions_        = n_local;
+        if (exchange.gather)
+          {
+            const auto counts = exchange.gather(std::vector<double>{double(n_local)});
+            n_functions_      = 0;
+            for (unsigned int r = 0; r < counts.size(); ++r)
+              {
+                if (r < exchange.rank)
+                  offset += static_cast<unsigned int>(counts[r]);
+                n_functions_ += static_cast<unsigned int>(counts[r]);
+              }
+          }
+        // The functions at every J: owned computed here, the others from their owners.
+        std::vector<double> head(3 * n_j, 0.), tail(3 * n_j, 0.);
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          {
+            const unsigned int    a = aggregate[i];
+            const Eigen::Vector3d x =
+              Eigen::Vector3d(position_j[i][0], position_j[i][1], position_j[i][2]) - centroid[a];
+            const Eigen::Vector3d phi = scaled[a] * x;
+            head[3 * i]               = offset + local_first[a];
+            head[3 * i + 1]           = count[a];
+            head[3 * i + 2]           = count[a] > 1 ? phi(0) : 0.;
+            tail[3 * i]               = count[a] > 2 ? phi(1) : 0.;
+            tail[3 * i + 1]           = count[a] > 3 ? phi(2) : 0.;
+          }
+        exchange.distribute(head);
+        exchange.distribute(tail);
+        functions_.first.resize(n_j);
+        functions_.count.resize(n_j);
+        functions_.phi.resize(3 * n_j);
+        for (unsigned int j = 0; j < n_j; ++j)
+          {
+            functions_.first[j]       = static_cast<unsigned int>(head[3 * j]);
+            functions_.count[j]       = static_cast<unsigned char>(head[3 * j + 1]);
+            functions_.phi[3 * j]     = head[3 * j + 2];
+            functions_.phi[3 * j + 1] = tail[3 * j];
+            functions_.phi[3 * j + 2] = tail[3 * j + 1];
+          }
+
+        // E over all ranks, factorized on every rank.
+        const auto          local = correction.coarse_operator(functions_);
+        std::vector<double> flat(3 * local.size());
+        for (std::size_t k = 0; k < local.size(); ++k)
+          {
+            flat[3 * k]     = local[k].row;
+            flat[3 * k + 1] = local[k].column;
+            flat[3 * k + 2] = local[k].value;
+          }
+        if (exchange.gather)
+          flat = exchange.gather(flat);
+        std::vector<Eigen::Triplet<double>> triplets;
+        triplets.reserve(flat.size() / 3 + n_functions_);
+        std::vector<double> diagonal(n_functions_, 0.);
+        for (std::size_t k = 0; k < flat.size(); k += 3)
+          {
+            const auto r = static_cast<int>(flat[k]), c = static_cast<int>(flat[k + 1]);
+            triplets.emplace_back(r, c, flat[k + 2]);
+            if (r == c)
+              diagonal[r] += flat[k + 2];
+          }
+        // E is singular along the fields linear over a whole component (and along functions no
+        // row couples): a small shift makes it definite; the right-hand sides Z^T r are
+        // orthogonal to those directions, so the shift changes the correction by round-off only.
+        const double largest = diagonal.empty() ? 0. : *std::max_element(diagonal.begin(), diagonal.end());
+        for (unsigned int k = 0; k < n_functions_; ++k)
+          triplets.emplace_back(k, k, diagonal[k] > 1e-10 * largest ? 1e-8 * largest : std::max(largest, 1.));
+        Eigen::SparseMatrix<double> e(n_functions_, n_functions_);
+        e.setFromTriplets(triplets.begin(), triplets.end());
+        factor_.compute(e);
+        // Round-off may leave a pivot of a singular direction negative: shift more and retry.
+        for (double extra = 1e-6 * largest; factor_.info() != Eigen::Success && extra <= largest; extra *= 100)
+          {
+            Eigen::SparseMatrix<double> shifted = e;
+            for (unsigned int k = 0; k < n_functions_; ++k)
+              shifted.coeffRef(k, k) += extra;
+            factor_.compute(shifted);
+          }
+        if (factor_.info() != Eigen::Success)
+          throw std::runtime_error("consistent correction: the coarse matrix could not be factorized");
+      }
+
+      /// z += Z E^-1 Z^T r on the owned J (3 per J).
+      void
+      add(const std::vector<double> &r, std::vector<double> &z) const
+      {
+        std::vector<double> b(3 * std::size_t(n_functions_), 0.);
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          for (unsigned int k = 0; k < functions_.count[i]; ++k)
+            {
+              const double phi = k == 0 ? 1. : functions_.phi[3 * i + k - 1];
+              for (unsigned int c = 0; c < 3; ++c)
+                b[3 * (functions_.first[i] + k) + c] += phi * r[3 * i + c];
+            }
+        exchange_.sum(b);
+        Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> rhs(b.data(), n_functions_, 3);
+        const Eigen::Matrix<double, Eigen::Dynamic, 3> y = factor_.solve(Eigen::Matrix<double, Eigen::Dynamic, 3>(rhs));
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          for (unsigned int k = 0; k < functions_.count[i]; ++k)
+            {
+              const double phi = k == 0 ? 1. : functions_.phi[3 * i + k - 1];
+              for (unsigned int c = 0; c < 3; ++c)
+                z[3 * i + c] += phi * y(functions_.first[i] + k, c);
+            }
+      }
+
+      unsigned int
+      n_functions() const
+      {
+        return n_functions_;
+      }
+
+      unsigned int
+      n_aggregates() const
+      {
+        return n_aggregates_;
+      }
+
+    private:
+      const CorrectionExchange                          &exchange_;
+      unsigned int                                       n_owned_, n_functions_ = 0, n_aggregates_ = 0;
+      CoarseFunctions                                    functions_;
+      Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> factor_;
+    };
+  } // namespace
+
+  CorrectionSolve
+  solve_consistent_correction(const ConsistentCorrection &correction, const double *area,
+                              const std::vector<Point3> &position_j, const std::vector<unsigned int> &component,
+                              const unsigned int n_components, const CorrectionExchange &exchange,
+                              std::vector<double> &lambda, const double tolerance, const unsigned int max_iterations,
+                              const double coarse_size)
+  {
+    const unsigned int n_j = correction.n_j(), n_owned = component.size();
+    std::vector<double> r(3 * n_j), z(3 * n_j), p(3 * n_j), q(3 * n_j), diag(3 * n_j);
+    lambda.assign(3 * n_j, 0.);
+    correction.defect(area, r.data());
+    exchange.assemble(r);
+    correction.diagonal(diag.data());
+    exchange.assemble(diag);
+    const auto dot = [&](const std::vector<double> &a, const std::vector<double> &b) {
+      std::vector<double> s(1, 0.);
+      for (unsigned int k = 0; k < 3 * n_owned; ++k)
+        s[0] += a[k] * b[k];
+      exchange.sum(s);
+      return s[0];
+    };
+    CorrectionSolve out;
+    const double    r_norm = std::sqrt(dot(r, r));
+
+    // Remove the component of r along the null space of S (fields linear in X), per component:
+    // r <- r - p (p^T p)^-1 p^T r with p = (1, X - X_c), X_c a fixed point of each component.
+    std::vector<Point3> origin(n_components, Point3{{0, 0, 0}});
+    {
+      std::vector<double> centroid(4 * n_components, 0.);
+      for (unsigned int i = 0; i < n_owned; ++i)
+        {
+          centroid[4 * component[i]] += 1;
+          for (unsigned int c = 0; c < 3; ++c)
+            centroid[4 * component[i] + 1 + c] += position_j[i][c];
+        }
+      exchange.sum(centroid);
+      for (unsigned int b = 0; b < n_components; ++b)
+        for (unsigned int c = 0; c < 3; ++c)
+          origin[b][c] = centroid[4 * b] > 0 ? centroid[4 * b + 1 + c] / centroid[4 * b] : 0.;
+    }
+    const auto basis = [&](const unsigned int i, double *pv) {
+      pv[0] = 1;
+      for (unsigned int c = 0; c < 3; ++c)
+        pv[c + 1] = position_j[i][c] - origin[component[i]][c];
+    };
+    // The projection onto the range of S, v <- v - p (p^T p)^-1 p^T v per component; returns
+    // the squared norm removed (over all ranks). (p^T p)^-1 depends on the positions only.
+    std::vector<double> inverse(16 * n_components, 0.);
+    std::vector<char>   invertible(n_components, 0);
+    {
+      std::vector<double> pp(16 * n_components, 0.);
+      for (unsigned int i = 0; i < n_owned; ++i)
+        {
+          double pv[4];
+          basis(i, pv);
+          for (unsigned int a = 0; a < 4; ++a)
+            for (unsigned int b = 0; b < 4; ++b)
+              pp[16 * component[i] + 4 * a + b] += pv[a] * pv[b];
+        }
+      exchange.sum(pp);
+      for (unsigned int b = 0; b < n_components; ++b)
+        invertible[b] = invert_spd4(&pp[16 * b], &inverse[16 * b]) ? 1 : 0;
+    }
+    std::vector<double> moments(12 * n_components), fit(12 * n_components);
+    const auto          project = [&](std::vector<double> &v) {
+      std::fill(moments.begin(), moments.end(), 0.);
+      for (unsigned int i = 0; i < n_owned; ++i)
+        {
+          double pv[4];
+          basis(i, pv);
+          for (unsigned int a = 0; a < 4; ++a)
+            for (unsigned int c = 0; c < 3; ++c)
+              moments[12 * component[i] + 3 * a + c] += pv[a] * v[3 * i + c];
+        }
+      exchange.sum(moments);
+      std::fill(fit.begin(), fit.end(), 0.);
+      for (unsigned int b = 0; b < n_components; ++b)
+        if (invertible[b])
+          for (unsigned int a = 0; a < 4; ++a)
+            for (unsigned int c = 0; c < 3; ++c)
+              for (unsigned int k = 0; k < 4; ++k)
+                fit[12 * b + 3 * a + c] += inverse[16 * b + 4 * a + k] * moments[12 * b + 3 * k + c];
+      double removed = 0;
+      for (unsigned int i = 0; i < n_owned; ++i)
+        {
+          double pv[4];
+          basis(i, pv);
+          for (unsigned int c = 0; c < 3; ++c)
+            {
+              double w = 0;
+              for (unsigned int a = 0; a < 4; ++a)
+                w += pv[a] * fit[12 * component[i] + 3 * a + c];
+              v[3 * i + c] -= w;
+              removed += w * w;
+            }
+        }
+      std::vector<double> total(1, removed);
+      exchange.sum(total);
+      return total[0];
+    };
+    const double removed = project(r);
+    out.initial_defect = r_norm;
+    out.inconsistency  = r_norm > 0 ? std::sqrt(removed) / r_norm : 0.;
+
+    std::unique_ptr<CoarseCorrection> coarse;
+    if (coarse_size > 0)
+      {
+        coarse                = std::make_unique<CoarseCorrection>(correction, position_j, component, coarse_size, exchange);
+        out.coarse_functions = coarse->n_functions();
+        std::vector<double> n(1, coarse->n_aggregates());
+        exchange.sum(n);
+        out.aggregates = static_cast<unsigned int>(n[0]);
+      }
+    const auto precondition = [&]() {
+      for (unsigned int k = 0; k < 3 * n_owned; ++k)
+        z[k] = diag[k] > 0 ? r[k] / diag[k] : 0.;
+      if (coarse)
+        {
+          coarse->add(r, z);
+          // E is shifted along its singular directions (the fields linear over a component), so
+          // E^-1 amplifies the round-off of Z^T r there by up to 1e8 / max E_kk; those fields are
+          // the null space of S, and left in z they ruin p^T S p (CG broke down on some CPUs).
+          // Projecting z keeps the preconditioner symmetric on the range of S, where r lives.
+          project(z);
+        }
+    };
+    precondition();
+    p = z;
+    exchange.distribute(p);
+    double       rz     = dot(r, z);
+    double       res    = std::sqrt(dot(r, r));
+    const double target = tolerance * std::max(r_norm, 1e-300);
+    while (res > target && out.iterations < max_iterations)
+      {
+        correction.apply(p.data(), q.data());
+        exchange.assemble(q);
+        const double pq = dot(p, q);
+        if (!(pq > 0))
+          break;
+        const double alpha = rz / pq;
+        for (unsigned int k = 0; k < 3 * n_owned; ++k)
+          {
+            lambda[k] += alpha * p[k];
+            r[k] -= alpha * q[k];
+          }
+        precondition();
+        const double rz_new = dot(r, z);
+        const double beta   = rz_new / rz;
+        rz                  = rz_new;
+        for (unsigned int k = 0; k < 3 * n_owned; ++k)
+          p[k] = z[k] + beta * p[k];
+        exchange.distribute(p);
+        res = std::sqrt(dot(r, r));
+        ++out.iterations;
+      }
+    exchange.distribute(lambda);
+    out.final_defect = res;
+    out.converged    = res <= target;
+    return out;
+  }
+} // namespace shard::particles
