@@ -31,6 +31,7 @@ namespace shard::materials
   class PointStates
   {
   public:
+    /// The points [begin, end) of one material and their history (n_slots per point).
     struct Group
     {
       const Material          *material = nullptr;
@@ -66,6 +67,7 @@ namespace shard::materials
       return static_cast<unsigned int>(group_of_.size());
     }
 
+    /// The material groups, in point order.
     const std::vector<Group> &
     groups() const
     {
@@ -101,6 +103,7 @@ namespace shard::materials
       return g.state.data() + std::size_t(i - g.begin) * g.n_slots;
     }
 
+    /// History slots of point @p i, writable.
     double *
     state(const unsigned int i)
     {

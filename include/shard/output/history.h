@@ -51,12 +51,14 @@ namespace shard::output
       return file_.is_open();
     }
 
+    /// Writes what the stream holds (before a checkpoint measures the file; at progress lines).
     void
     flush()
     {
       file_.flush();
     }
 
+    /// Closes the file at the end of the run.
     void
     close()
     {

@@ -155,6 +155,7 @@ namespace shard
       return element_steps_;
     }
 
+    /// Particle force evaluations on this rank so far.
     double
     particle_steps() const
     {
