@@ -150,9 +150,7 @@ namespace shard
     if (convert_now_)
       {
         const auto timer = c_.times.scope(Phase::topology);
-        convert_(to_convert_);
-        to_convert_.clear();
-        convert_now_ = false;
+        convert_(to_convert_); // (the flags are reset by the next internal_forces())
       }
     // 4c. Bond failure (collective on check steps), also after the force of this step: the
     // bonds are judged by this step's values; rows rebuilt, F reset to the new rows.
@@ -164,12 +162,14 @@ namespace shard
       return false;
     // The kick uses the forces of the new stencils: df = f_new - f_old where the changed rows
     // reach; the kick's kinetic energy (product form) sees it at once, booked as bond energy.
-    s_.df                       = 0;
+    if (df_.get_partitioner() != c_.discretization.partitioner())
+      c_.discretization.initialize_vector(df_);
+    df_                         = 0;
     const auto [a_rows, g_rows] = c_.particles.take_rebuilt_rows();
-    const double w              = c_.spg.refresh_forces(s_.d, s_.df, a_rows, g_rows);
-    s_.df.compress(VectorOperation::add);
-    s_.f += s_.df;
-    c_.energy.book_bond_change(s_.df, s_.v, s_.dt, w);
+    const double w              = c_.spg.refresh_forces(s_.d, df_, a_rows, g_rows);
+    df_.compress(VectorOperation::add);
+    s_.f += df_;
+    c_.energy.book_bond_change(df_, s_.v, s_.dt, w);
     return true;
   }
 

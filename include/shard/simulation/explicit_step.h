@@ -44,8 +44,6 @@ namespace shard
     mesh::Vector mass;
     /// Physical displacement u = A d at particles, d elsewhere (output; see Simulation).
     mesh::Vector d_phys;
-    /// Change of the particle force when bonds break in this step (phase 4c).
-    mesh::Vector df;
 
     /// t^n (s).
     double t = 0;
@@ -66,7 +64,7 @@ namespace shard
     std::vector<mesh::Vector *>
     vectors()
     {
-      return {&d, &v, &v_now, &f, &f_ext, &mass, &d_phys, &df};
+      return {&d, &v, &v_now, &f, &f_ext, &mass, &d_phys};
     }
   };
 
@@ -191,5 +189,8 @@ namespace shard
     bool                      convert_now_ = false;
     /// Work space of the bond tests (failure values of the particles and their ghosts).
     mesh::Vector bond_values_;
+    /// Change of the particle force when bonds break (phase 4c); allocated at the first break
+    /// and again after a layout change, so that a run without breaks holds no such vector.
+    mesh::Vector df_;
   };
 } // namespace shard
