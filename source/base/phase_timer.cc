@@ -22,9 +22,9 @@ namespace shard::base
   const std::array<const char *, PhaseTimes::n_phases> &
   PhaseTimes::names()
   {
-    static const std::array<const char *, n_phases> n = {"0 set-up",   "1 step size",      "2 drift",  "3 exchange",
-                                                         "4 topology", "5 FE force",       "6 particle force",
-                                                         "7 loads",    "8 accumulate",     "9 kick",   "10 record"};
+    static const std::array<const char *, n_phases> n = {{"0 set-up", "1 step size", "2 drift", "3 exchange",
+                                                          "4 topology", "5 FE force", "6 particle force", "7 loads",
+                                                          "8 accumulate", "9 kick", "10 record"}};
     return n;
   }
 

@@ -330,6 +330,40 @@ namespace shard::particles
     return out;
   }
 
+  base::KeyedRecords
+  SpgForce::portable_state(const std::function<unsigned long long(unsigned int)> &key_of) const
+  {
+    base::KeyedRecords  out;
+    std::vector<double> r;
+    for (unsigned int i = 0; i < n_owned(); ++i)
+      {
+        r.assign(&stress_[6 * i], &stress_[6 * i] + 6);
+        r.push_back(q_[i]);
+        r.insert(r.end(), state(i), state(i) + points_.n_slots(i));
+        r.push_back(volume_factor_[i]);
+        r.insert(r.end(), op_.residual_offset(i), op_.residual_offset(i) + 3);
+        out.add(key_of(i), r.data(), r.data() + r.size());
+      }
+    return out;
+  }
+
+  void
+  SpgForce::restore_portable(const base::KeyedLookup                                 &saved,
+                             const std::function<unsigned long long(unsigned int)> &key_of)
+  {
+    for (unsigned int i = 0; i < n_owned(); ++i)
+      {
+        const std::string  what    = "particle at node " + std::to_string(key_of(i));
+        const auto         r       = saved.find(key_of(i), what);
+        const unsigned int n_slots = points_.n_slots(i);
+        if (r.size != 11 + n_slots)
+          throw std::runtime_error(what + " has another number of history values");
+        set_state(i, r.values, r.values + 7, r.values[6]);
+        set_volume_factor(i, r.values[7 + n_slots]);
+        set_residual_offset(i, r.values + 8 + n_slots);
+      }
+  }
+
   void
   SpgForce::set_state(const unsigned int i, const double *stress, const double *history, const double q)
   {

@@ -65,11 +65,8 @@ namespace shard
       std::vector<double>       energy;   // EnergyBalance::rank_values()
       std::vector<double>       counters; // element steps, particle steps, particle step
       double                    contact_energy = 0, friction_energy = 0;
-      Keys                      node_keys;
-      std::vector<double>       node_values; // d, v, v_now, f, f_ext: 15 per node
-      std::vector<unsigned int> cells;
-      Keys                      element_offsets, particle_keys, particle_offsets;
-      std::vector<double>       element_values, particle_values;
+      /// Owned nodes (StepState), elements (HexForce) and particles (SpgForce), by key.
+      base::KeyedRecords        nodes, elements, particles;
       unsigned char             has_contact = 0;
       std::vector<unsigned int> changed_rows; // ParticleSet::changed_rows(), local rows
     };
@@ -92,9 +89,9 @@ namespace shard
     void
     serialize(IO &&io, SavedRank &r)
     {
-      io(r.ghosts), io(r.energy), io(r.counters), io(r.contact_energy), io(r.friction_energy), io(r.node_keys);
-      io(r.node_values), io(r.cells), io(r.element_offsets), io(r.element_values), io(r.particle_keys);
-      io(r.particle_offsets), io(r.particle_values), io(r.has_contact), io(r.changed_rows);
+      io(r.ghosts), io(r.energy), io(r.counters), io(r.contact_energy), io(r.friction_energy);
+      r.nodes.serialize(io), r.elements.serialize(io), r.particles.serialize(io);
+      io(r.has_contact), io(r.changed_rows);
     }
 
     /// Reads header, global part, energy balance and rank part of one payload; @p reader stays after them.
@@ -113,65 +110,25 @@ namespace shard
     }
 
     /// Restart: d, v, v_now, f, f_ext of the owned nodes, element and particle state by key,
-    /// from whichever rank of the checkpoint wrote them.
+    /// from whichever rank of the checkpoint wrote them; each component reads its own records.
     void
     restore_owned_values(const std::vector<SavedRank> &ranks, const output::Checkpoint &checkpoint_,
-                         const mesh::Discretization &discretization_, fe::HexForce &hex_, particles::SpgForce &spg_,
-                         const particles::ParticleSet &particles_, StepState &state_)
+                         fe::HexForce &hex_, particles::SpgForce &spg_, const particles::ParticleSet &particles_,
+                         StepState &state_)
     {
-    // Nodes, elements and particles by key, from whichever rank wrote them.
-    std::unordered_map<unsigned long long, std::pair<unsigned int, std::size_t>> node_at, particle_at;
-    std::unordered_map<unsigned int, std::pair<unsigned int, std::size_t>>       element_at;
-    for (unsigned int q = 0; q < ranks.size(); ++q)
-      {
-        for (std::size_t k = 0; k < ranks[q].node_keys.size(); ++k)
-          node_at[ranks[q].node_keys[k]] = {q, k};
-        for (std::size_t k = 0; k < ranks[q].cells.size(); ++k)
-          element_at[ranks[q].cells[k]] = {q, k};
-        for (std::size_t k = 0; k < ranks[q].particle_keys.size(); ++k)
-          particle_at[ranks[q].particle_keys[k]] = {q, k};
-      }
-    const auto &pt = *discretization_.partitioner();
-    for (unsigned int j = 0; j < pt.locally_owned_size(); j += 3)
-      {
-        const auto it = node_at.find(checkpoint_.key_of_local_dof(j));
-        if (it == node_at.end())
-          throw std::runtime_error("node " + std::to_string(checkpoint_.key_of_local_dof(j)) + " is missing");
-        const double *x = &ranks[it->second.first].node_values[15 * it->second.second];
-        for (auto *vec : {&state_.d, &state_.v, &state_.v_now, &state_.f, &state_.f_ext})
-          for (unsigned int c = 0; c < 3; ++c, ++x)
-            vec->local_element(j + c) = *x;
-      }
-    for (unsigned int e = 0; e < hex_.n_local_elements(); ++e)
-      {
-        const auto it = element_at.find(hex_.cell_index(e));
-        if (it == element_at.end())
-          throw std::runtime_error("element of cell " + std::to_string(hex_.cell_index(e)) + " is missing");
-        const auto &s = ranks[it->second.first];
-        const auto  k = it->second.second;
-        if (!hex_.set_checkpoint_values(e, &s.element_values[s.element_offsets[k]],
-                                        s.element_offsets[k + 1] - s.element_offsets[k]))
-          throw std::runtime_error("element of cell " + std::to_string(hex_.cell_index(e)) +
-                                   " has another number of history values");
-      }
-    for (unsigned int i = 0; i < spg_.n_owned(); ++i)
-      {
-        const auto key_i = checkpoint_.key_of_local_dof(particles_.local_dof(i));
-        const auto it    = particle_at.find(key_i);
-        if (it == particle_at.end())
-          throw std::runtime_error("particle at node " + std::to_string(key_i) + " is missing");
-        const auto   &s = ranks[it->second.first];
-        const auto    k = it->second.second;
-        const double *x = &s.particle_values[s.particle_offsets[k]];
-        const unsigned int n_slots = spg_.material(i).n_state_slots();
-        // stress (6), q, history, volume factor, residual offset (3)
-        if (s.particle_offsets[k + 1] - s.particle_offsets[k] != 11 + n_slots)
-          throw std::runtime_error("particle at node " + std::to_string(key_i) +
-                                   " has another number of history values");
-        spg_.set_state(i, x, x + 7, x[6]);
-        spg_.set_volume_factor(i, x[7 + n_slots]);
-        spg_.set_residual_offset(i, x + 8 + n_slots);
-      }
+      std::vector<const base::KeyedRecords *> nodes, elements, particles;
+      for (const auto &r : ranks)
+        {
+          nodes.push_back(&r.nodes);
+          elements.push_back(&r.elements);
+          particles.push_back(&r.particles);
+        }
+      state_.restore_portable(base::KeyedLookup(nodes),
+                              [&](const unsigned int j) { return checkpoint_.key_of_local_dof(j); });
+      hex_.restore_portable(base::KeyedLookup(elements));
+      spg_.restore_portable(base::KeyedLookup(particles), [&](const unsigned int i) {
+        return checkpoint_.key_of_local_dof(particles_.local_dof(i));
+      });
     }
   } // namespace
 
@@ -266,33 +223,11 @@ namespace shard
     r.energy   = energy_.rank_values();
     r.counters = {explicit_step_.element_steps(), explicit_step_.particle_steps(), state_.particle_dt};
     r.contact_energy = contact_.energy(), r.friction_energy = contact_.friction_energy();
-    for (unsigned int j = 0; j < pt.locally_owned_size(); j += 3)
-      {
-        r.node_keys.push_back(checkpoint_.key_of_local_dof(j));
-        for (const auto *vec : {&state_.d, &state_.v, &state_.v_now, &state_.f, &state_.f_ext})
-          for (unsigned int c = 0; c < 3; ++c)
-            r.node_values.push_back(vec->local_element(j + c));
-      }
-    r.element_offsets.push_back(0);
-    for (unsigned int e = 0; e < hex_.n_local_elements(); ++e)
-      {
-        r.cells.push_back(hex_.cell_index(e));
-        const auto values = hex_.checkpoint_values(e);
-        r.element_values.insert(r.element_values.end(), values.begin(), values.end());
-        r.element_offsets.push_back(r.element_values.size());
-      }
-    r.particle_offsets.push_back(0);
+    r.nodes    = state_.portable_state([&](const unsigned int j) { return checkpoint_.key_of_local_dof(j); });
+    r.elements = hex_.portable_state();
     if (spg_.active())
-      for (const auto &[id, p] : spg_.save_state())
-        {
-          r.particle_keys.push_back(checkpoint_.key_of_node(id));
-          r.particle_values.insert(r.particle_values.end(), p.stress.begin(), p.stress.end());
-          r.particle_values.push_back(p.q);
-          r.particle_values.insert(r.particle_values.end(), p.state.begin(), p.state.end());
-          r.particle_values.push_back(p.volume_factor);
-          r.particle_values.insert(r.particle_values.end(), p.residual_offset.begin(), p.residual_offset.end());
-          r.particle_offsets.push_back(r.particle_values.size());
-        }
+      r.particles = spg_.portable_state(
+        [&](const unsigned int i) { return checkpoint_.key_of_local_dof(particles_.local_dof(i)); });
     r.has_contact = contact_.active();
     if (particles_.active())
       r.changed_rows = particles_.changed_rows();
@@ -441,7 +376,7 @@ namespace shard
           }
         bonds_.restore_counts(g.n_broken, g.n_free);
 
-        restore_owned_values(ranks, checkpoint_, discretization_, hex_, spg_, particles_, state_);
+        restore_owned_values(ranks, checkpoint_, hex_, spg_, particles_, state_);
         state_.d.update_ghost_values();
         state_.v.update_ghost_values();
         state_.v_now.update_ghost_values();

@@ -5,11 +5,46 @@
 
 #include <cmath>
 #include <sstream>
+#include <stdexcept>
+#include <string>
 
 namespace shard
 {
   using namespace dealii;
   using base::Phase;
+
+  base::KeyedRecords
+  StepState::portable_state(const std::function<unsigned long long(unsigned int)> &key_of) const
+  {
+    base::KeyedRecords out;
+    double             r[15];
+    for (unsigned int j = 0; j < d.locally_owned_size(); j += 3)
+      {
+        double *x = r;
+        for (const auto *vec : {&d, &v, &v_now, &f, &f_ext})
+          for (unsigned int c = 0; c < 3; ++c)
+            *x++ = vec->local_element(j + c);
+        out.add(key_of(j), r, r + 15);
+      }
+    return out;
+  }
+
+  void
+  StepState::restore_portable(const base::KeyedLookup                                 &saved,
+                              const std::function<unsigned long long(unsigned int)> &key_of)
+  {
+    for (unsigned int j = 0; j < d.locally_owned_size(); j += 3)
+      {
+        const std::string what = "node " + std::to_string(key_of(j));
+        const auto        r    = saved.find(key_of(j), what);
+        if (r.size != 15)
+          throw std::runtime_error(what + " has another number of values");
+        const double *x = r.values;
+        for (auto *vec : {&d, &v, &v_now, &f, &f_ext})
+          for (unsigned int c = 0; c < 3; ++c)
+            vec->local_element(j + c) = *x++;
+      }
+  }
 
   ExplicitStep::ExplicitStep(MPI_Comm comm, const Components &components, StepState &state,
                              std::function<void(const std::vector<unsigned int> &)> convert)

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <shard/base/instability.h>
+#include <shard/base/keyed_records.h>
 #include <shard/base/parameters.h>
 #include <shard/materials/material_library.h>
 #include <shard/materials/point_states.h>
@@ -170,30 +171,44 @@ namespace shard::fe
     }
 
     /**
-     * @brief What local element @p e carries into the next step, for a checkpoint: stress (6),
-     * bulk viscosity q, hourglass forces (12), then the history slots.
+     * @brief The checkpoint of every local element, by active cell index (independent of the
+     * partition): stress (6), bulk viscosity q, hourglass forces (12), then the history slots.
      */
-    std::vector<double>
-    checkpoint_values(unsigned int e) const
+    base::KeyedRecords
+    portable_state() const
     {
-      std::vector<double> out(stress_.begin() + 6 * e, stress_.begin() + 6 * e + 6);
-      out.push_back(q_[e]);
-      out.insert(out.end(), hourglass_.begin() + 12 * e, hourglass_.begin() + 12 * e + 12);
-      out.insert(out.end(), state(e), state(e) + points_.n_slots(e));
+      base::KeyedRecords out;
+      std::vector<double> r;
+      for (unsigned int e = 0; e < n_local_elements(); ++e)
+        {
+          r.assign(stress_.begin() + 6 * e, stress_.begin() + 6 * e + 6);
+          r.push_back(q_[e]);
+          r.insert(r.end(), hourglass_.begin() + 12 * e, hourglass_.begin() + 12 * e + 12);
+          r.insert(r.end(), state(e), state(e) + points_.n_slots(e));
+          out.add(cell_index(e), r.data(), r.data() + r.size());
+        }
       return out;
     }
 
-    /// Restores what checkpoint_values() returned; false if @p n does not match the element.
-    bool
-    set_checkpoint_values(unsigned int e, const double *values, std::size_t n)
+    /**
+     * @brief Restart: every local element takes what portable_state() wrote for its cell, on
+     * whichever rank that was.
+     * @throws std::runtime_error when a cell is missing or has another number of values
+     */
+    void
+    restore_portable(const base::KeyedLookup &saved)
     {
-      if (n != 19 + points_.n_slots(e))
-        return false;
-      std::copy(values, values + 6, stress_.begin() + 6 * e);
-      q_[e] = values[6];
-      std::copy(values + 7, values + 19, hourglass_.begin() + 12 * e);
-      std::copy(values + 19, values + n, points_.state(e));
-      return true;
+      for (unsigned int e = 0; e < n_local_elements(); ++e)
+        {
+          const std::string what = "element of cell " + std::to_string(cell_index(e));
+          const auto        r    = saved.find(cell_index(e), what);
+          if (r.size != 19 + points_.n_slots(e))
+            throw std::runtime_error(what + " has another number of history values");
+          std::copy(r.values, r.values + 6, stress_.begin() + 6 * e);
+          q_[e] = r.values[6];
+          std::copy(r.values + 7, r.values + 19, hourglass_.begin() + 12 * e);
+          std::copy(r.values + 19, r.values + r.size, points_.state(e));
+        }
     }
 
     /// Material of local element @p e.

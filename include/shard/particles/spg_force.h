@@ -10,6 +10,7 @@
 
 #include <shard/base/parameters.h>
 #include <shard/base/instability.h>
+#include <shard/base/keyed_records.h>
 #include <shard/materials/material_library.h>
 #include <shard/materials/point_states.h>
 #include <shard/particles/consistent_correction.h>
@@ -17,6 +18,7 @@
 #include <shard/particles/spg_operator.h>
 
 #include <array>
+#include <functional>
 #include <map>
 #include <string>
 #include <vector>
@@ -87,6 +89,21 @@ namespace shard::particles
     /// Sets stress, history slots (material order) and bulk viscosity of owned particle @p i.
     void
     set_state(unsigned int i, const double *stress, const double *history, double q);
+
+    /**
+     * @brief The checkpoint of every owned particle, by @p key_of(i) (a key independent of the
+     * partition): stress (6), q, history slots, volume factor, residual offset (3).
+     */
+    base::KeyedRecords
+    portable_state(const std::function<unsigned long long(unsigned int)> &key_of) const;
+
+    /**
+     * @brief Restart: every owned particle @p i takes what portable_state() wrote under
+     * @p key_of(i), on whichever rank that was.
+     * @throws std::runtime_error when a particle is missing or has another number of values
+     */
+    void
+    restore_portable(const base::KeyedLookup &saved, const std::function<unsigned long long(unsigned int)> &key_of);
 
     /**
      * @brief After the stencils were rebuilt (a conversion): the residual stabilization of

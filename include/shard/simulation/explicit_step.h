@@ -6,6 +6,7 @@
  */
 #pragma once
 
+#include <shard/base/keyed_records.h>
 #include <shard/base/phase_timer.h>
 #include <shard/bc/boundary_conditions.h>
 #include <shard/contact/contact.h>
@@ -66,6 +67,22 @@ namespace shard
     {
       return {&d, &v, &v_now, &f, &f_ext, &mass, &d_phys};
     }
+
+    /**
+     * @brief The checkpoint of the owned nodes, by @p key_of(j) of the first local DOF j of a
+     * node (a key independent of the partition): d, v, v_now, f, f_ext (15 values; the mass
+     * and d_phys follow from the set-up and d).
+     */
+    base::KeyedRecords
+    portable_state(const std::function<unsigned long long(unsigned int)> &key_of) const;
+
+    /**
+     * @brief Restart: every owned node takes what portable_state() wrote under its key, on
+     * whichever rank that was (ghost values are not updated).
+     * @throws std::runtime_error when a node is missing or has another number of values
+     */
+    void
+    restore_portable(const base::KeyedLookup &saved, const std::function<unsigned long long(unsigned int)> &key_of);
   };
 
   /**
