@@ -472,6 +472,126 @@ namespace shard::particles
       CoarseFunctions                                    functions_;
       Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> factor_;
     };
+
+    /// Dot product over the owned entries (3 per owned J), summed over ranks. @note Collective.
+    double
+    owned_dot(const std::vector<double> &a, const std::vector<double> &b, const unsigned int n_owned,
+              const CorrectionExchange &exchange)
+    {
+      std::vector<double> s(1, 0.);
+      for (unsigned int k = 0; k < 3 * n_owned; ++k)
+        s[0] += a[k] * b[k];
+      exchange.sum(s);
+      return s[0];
+    }
+
+    /**
+     * The projection onto the range of S, v <- v - p (p^T p)^-1 p^T v per component, with
+     * p = (1, X - X_c) and X_c the centroid of each component (a fixed point): removes the
+     * fields linear in X, the null space of S. (p^T p)^-1 depends on the positions only.
+     */
+    class NullSpaceProjection
+    {
+    public:
+      /// Centroids and (p^T p)^-1 of every component. @note Collective.
+      NullSpaceProjection(const std::vector<Point3> &position_j, const std::vector<unsigned int> &component,
+                          const unsigned int n_components, const CorrectionExchange &exchange)
+        : position_j_(position_j)
+        , component_(component)
+        , n_owned_(component.size())
+        , exchange_(exchange)
+        , origin_(n_components, Point3{{0, 0, 0}})
+        , inverse_(16 * n_components, 0.)
+        , invertible_(n_components, 0)
+        , moments_(12 * n_components)
+        , fit_(12 * n_components)
+      {
+        std::vector<double> centroid(4 * n_components, 0.);
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          {
+            centroid[4 * component[i]] += 1;
+            for (unsigned int c = 0; c < 3; ++c)
+              centroid[4 * component[i] + 1 + c] += position_j[i][c];
+          }
+        exchange.sum(centroid);
+        for (unsigned int b = 0; b < n_components; ++b)
+          for (unsigned int c = 0; c < 3; ++c)
+            origin_[b][c] = centroid[4 * b] > 0 ? centroid[4 * b + 1 + c] / centroid[4 * b] : 0.;
+
+        std::vector<double> pp(16 * n_components, 0.);
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          {
+            double pv[4];
+            basis(i, pv);
+            for (unsigned int a = 0; a < 4; ++a)
+              for (unsigned int b = 0; b < 4; ++b)
+                pp[16 * component[i] + 4 * a + b] += pv[a] * pv[b];
+          }
+        exchange.sum(pp);
+        for (unsigned int b = 0; b < n_components; ++b)
+          invertible_[b] = invert_spd4(&pp[16 * b], &inverse_[16 * b]) ? 1 : 0;
+      }
+
+      /// Projects @p v (3 per owned J); returns the squared norm removed (over all ranks).
+      /// @note Collective.
+      double
+      project(std::vector<double> &v)
+      {
+        std::fill(moments_.begin(), moments_.end(), 0.);
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          {
+            double pv[4];
+            basis(i, pv);
+            for (unsigned int a = 0; a < 4; ++a)
+              for (unsigned int c = 0; c < 3; ++c)
+                moments_[12 * component_[i] + 3 * a + c] += pv[a] * v[3 * i + c];
+          }
+        exchange_.sum(moments_);
+        std::fill(fit_.begin(), fit_.end(), 0.);
+        for (unsigned int b = 0; b < invertible_.size(); ++b)
+          if (invertible_[b])
+            for (unsigned int a = 0; a < 4; ++a)
+              for (unsigned int c = 0; c < 3; ++c)
+                for (unsigned int k = 0; k < 4; ++k)
+                  fit_[12 * b + 3 * a + c] += inverse_[16 * b + 4 * a + k] * moments_[12 * b + 3 * k + c];
+        double removed = 0;
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          {
+            double pv[4];
+            basis(i, pv);
+            for (unsigned int c = 0; c < 3; ++c)
+              {
+                double w = 0;
+                for (unsigned int a = 0; a < 4; ++a)
+                  w += pv[a] * fit_[12 * component_[i] + 3 * a + c];
+                v[3 * i + c] -= w;
+                removed += w * w;
+              }
+          }
+        std::vector<double> total(1, removed);
+        exchange_.sum(total);
+        return total[0];
+      }
+
+    private:
+      /// p = (1, X - X_c) of owned particle @p i.
+      void
+      basis(const unsigned int i, double *pv) const
+      {
+        pv[0] = 1;
+        for (unsigned int c = 0; c < 3; ++c)
+          pv[c + 1] = position_j_[i][c] - origin_[component_[i]][c];
+      }
+
+      const std::vector<Point3>       &position_j_;
+      const std::vector<unsigned int> &component_;
+      const unsigned int               n_owned_;
+      const CorrectionExchange        &exchange_;
+      std::vector<Point3>              origin_;
+      std::vector<double>              inverse_;
+      std::vector<char>                invertible_;
+      std::vector<double>              moments_, fit_;
+    };
   } // namespace
 
   CorrectionSolve
@@ -489,94 +609,16 @@ namespace shard::particles
     correction.diagonal(diag.data());
     exchange.assemble(diag);
     const auto dot = [&](const std::vector<double> &a, const std::vector<double> &b) {
-      std::vector<double> s(1, 0.);
-      for (unsigned int k = 0; k < 3 * n_owned; ++k)
-        s[0] += a[k] * b[k];
-      exchange.sum(s);
-      return s[0];
+      return owned_dot(a, b, n_owned, exchange);
     };
     CorrectionSolve out;
     const double    r_norm = std::sqrt(dot(r, r));
 
-    // Remove the component of r along the null space of S (fields linear in X), per component:
-    // r <- r - p (p^T p)^-1 p^T r with p = (1, X - X_c), X_c a fixed point of each component.
-    std::vector<Point3> origin(n_components, Point3{{0, 0, 0}});
-    {
-      std::vector<double> centroid(4 * n_components, 0.);
-      for (unsigned int i = 0; i < n_owned; ++i)
-        {
-          centroid[4 * component[i]] += 1;
-          for (unsigned int c = 0; c < 3; ++c)
-            centroid[4 * component[i] + 1 + c] += position_j[i][c];
-        }
-      exchange.sum(centroid);
-      for (unsigned int b = 0; b < n_components; ++b)
-        for (unsigned int c = 0; c < 3; ++c)
-          origin[b][c] = centroid[4 * b] > 0 ? centroid[4 * b + 1 + c] / centroid[4 * b] : 0.;
-    }
-    const auto basis = [&](const unsigned int i, double *pv) {
-      pv[0] = 1;
-      for (unsigned int c = 0; c < 3; ++c)
-        pv[c + 1] = position_j[i][c] - origin[component[i]][c];
-    };
-    // The projection onto the range of S, v <- v - p (p^T p)^-1 p^T v per component; returns
-    // the squared norm removed (over all ranks). (p^T p)^-1 depends on the positions only.
-    std::vector<double> inverse(16 * n_components, 0.);
-    std::vector<char>   invertible(n_components, 0);
-    {
-      std::vector<double> pp(16 * n_components, 0.);
-      for (unsigned int i = 0; i < n_owned; ++i)
-        {
-          double pv[4];
-          basis(i, pv);
-          for (unsigned int a = 0; a < 4; ++a)
-            for (unsigned int b = 0; b < 4; ++b)
-              pp[16 * component[i] + 4 * a + b] += pv[a] * pv[b];
-        }
-      exchange.sum(pp);
-      for (unsigned int b = 0; b < n_components; ++b)
-        invertible[b] = invert_spd4(&pp[16 * b], &inverse[16 * b]) ? 1 : 0;
-    }
-    std::vector<double> moments(12 * n_components), fit(12 * n_components);
-    const auto          project = [&](std::vector<double> &v) {
-      std::fill(moments.begin(), moments.end(), 0.);
-      for (unsigned int i = 0; i < n_owned; ++i)
-        {
-          double pv[4];
-          basis(i, pv);
-          for (unsigned int a = 0; a < 4; ++a)
-            for (unsigned int c = 0; c < 3; ++c)
-              moments[12 * component[i] + 3 * a + c] += pv[a] * v[3 * i + c];
-        }
-      exchange.sum(moments);
-      std::fill(fit.begin(), fit.end(), 0.);
-      for (unsigned int b = 0; b < n_components; ++b)
-        if (invertible[b])
-          for (unsigned int a = 0; a < 4; ++a)
-            for (unsigned int c = 0; c < 3; ++c)
-              for (unsigned int k = 0; k < 4; ++k)
-                fit[12 * b + 3 * a + c] += inverse[16 * b + 4 * a + k] * moments[12 * b + 3 * k + c];
-      double removed = 0;
-      for (unsigned int i = 0; i < n_owned; ++i)
-        {
-          double pv[4];
-          basis(i, pv);
-          for (unsigned int c = 0; c < 3; ++c)
-            {
-              double w = 0;
-              for (unsigned int a = 0; a < 4; ++a)
-                w += pv[a] * fit[12 * component[i] + 3 * a + c];
-              v[3 * i + c] -= w;
-              removed += w * w;
-            }
-        }
-      std::vector<double> total(1, removed);
-      exchange.sum(total);
-      return total[0];
-    };
-    const double removed = project(r);
-    out.initial_defect = r_norm;
-    out.inconsistency  = r_norm > 0 ? std::sqrt(removed) / r_norm : 0.;
+    // Remove the component of r along the null space of S (fields linear in X), per component.
+    NullSpaceProjection projection(position_j, component, n_components, exchange);
+    const double        removed = projection.project(r);
+    out.initial_defect          = r_norm;
+    out.inconsistency           = r_norm > 0 ? std::sqrt(removed) / r_norm : 0.;
 
     std::unique_ptr<CoarseCorrection> coarse;
     if (coarse_size > 0)
@@ -597,7 +639,7 @@ namespace shard::particles
           // E^-1 amplifies the round-off of Z^T r there by up to 1e8 / max E_kk; those fields are
           // the null space of S, and left in z they ruin p^T S p (CG broke down on some CPUs).
           // Projecting z keeps the preconditioner symmetric on the range of S, where r lives.
-          project(z);
+          projection.project(z);
         }
     };
     precondition();

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <iterator>
 #include <map>
+#include <memory>
 #include <unordered_map>
 #include <stdexcept>
 #include <cmath>
@@ -44,6 +45,258 @@ namespace shard::particles
       while (parent[x] != x)
         x = parent[x] = parent[parent[x]];
       return x;
+    }
+
+    /// Whether active cell @p cell is converted (cells past the end of @p converted_cells are not).
+    bool
+    is_converted(const std::vector<bool> &converted_cells, const unsigned int cell)
+    {
+      return cell < converted_cells.size() && converted_cells[cell];
+    }
+
+    /// Nodal sums over the converted cells (ParticleSet::prepare()), 3 entries per node.
+    struct NodalFields
+    {
+      explicit NodalFields(const std::shared_ptr<const Utilities::MPI::Partitioner> &partitioner)
+        : volume(partitioner)
+        , spacing(partitioner)
+        , area(partitioner)
+        , flag(partitioner)
+      {}
+      /// Volume (component 0), largest incident cell extent per direction, outward area vector.
+      mesh::Vector volume, spacing, area;
+      /// Component 0: interpolating; 1: intact cells at the node (owned entries); 2: body + 1.
+      mesh::Vector flag;
+      /// 8 global node ids per owned converted cell.
+      std::vector<std::uint64_t> cell_nodes;
+    };
+
+    /// Adds the faces of converted @p cell on the boundary of the converted region (the body's
+    /// surface and the interface to intact cells) to the area vectors and flags the nodes of
+    /// the surface faces listed in @p interpolating_faces.
+    void
+    add_region_faces(const DoFHandler<3>::active_cell_iterator &cell, const Utilities::MPI::Partitioner &pt,
+                     const std::vector<bool> &converted_cells, const std::string &body_name,
+                     const std::vector<std::pair<std::string, int>> &interpolating_faces, NodalFields &nodal)
+    {
+      for (const unsigned int f : cell->face_indices())
+        {
+          // Faces of the converted region: the body's surface and the interface to intact cells.
+          const bool surface = cell->face(f)->at_boundary();
+          if (!surface && is_converted(converted_cells, cell->neighbor(f)->active_cell_index()))
+            continue;
+          const auto face = cell->face(f);
+          const auto n    = mesh::nodal_area_vectors(cell, f);
+          bool       interpolating = false;
+          if (surface)
+            for (const auto &[b, id] : interpolating_faces)
+              interpolating |= b == body_name && (id < 0 || id == static_cast<int>(face->boundary_id()));
+          for (unsigned int v = 0; v < 4; ++v)
+            {
+              const unsigned int j = pt.global_to_local(face->vertex_dof_index(v, 0));
+              for (unsigned int c = 0; c < 3; ++c)
+                nodal.area.local_element(j + c) += n[v][c];
+              if (interpolating)
+                nodal.flag.local_element(j) = 1;
+            }
+        }
+    }
+
+    /// Adds converted @p cell to @p nodal: V_e / 8, the body and the cell's extent at its 8
+    /// nodes, its node ids, and its faces on the boundary of the converted region.
+    void
+    add_converted_cell(const DoFHandler<3>::active_cell_iterator &cell, const Utilities::MPI::Partitioner &pt,
+                       const std::vector<bool> &converted_cells, const std::string &body_name,
+                       const std::vector<std::pair<std::string, int>> &interpolating_faces, NodalFields &nodal)
+    {
+      double x[8][3], B[8][3], lo[3], hi[3];
+      for (unsigned int v = 0; v < 8; ++v)
+        for (unsigned int c = 0; c < 3; ++c)
+          x[v][c] = cell->vertex(v)[c];
+      const double ve = fe::hex_volume_gradient(x, B);
+      for (unsigned int c = 0; c < 3; ++c)
+        {
+          lo[c] = hi[c] = x[0][c];
+          for (unsigned int v = 1; v < 8; ++v)
+            lo[c] = std::min(lo[c], x[v][c]), hi[c] = std::max(hi[c], x[v][c]);
+        }
+      for (unsigned int v = 0; v < 8; ++v)
+        {
+          const unsigned int j = pt.global_to_local(cell->vertex_dof_index(v, 0));
+          nodal.volume.local_element(j) += ve / 8;
+          nodal.flag.local_element(j + 2) = cell->material_id() + 1;
+          for (unsigned int c = 0; c < 3; ++c)
+            nodal.spacing.local_element(j + c) = std::max(nodal.spacing.local_element(j + c), hi[c] - lo[c]);
+          nodal.cell_nodes.push_back(cell->vertex_dof_index(v, 0) / 3);
+        }
+      add_region_faces(cell, pt, converted_cells, body_name, interpolating_faces, nodal);
+    }
+
+    /// Nodal volume, spacing, outward area vector of the converted region, the interpolating
+    /// flag, the body and the number of intact (unconverted) cells, summed over cells and ranks.
+    void
+    sum_nodal_fields(const mesh::Discretization &discretization, const std::vector<bool> &converted_cells,
+                     const std::vector<std::pair<std::string, int>> &interpolating_faces, NodalFields &nodal)
+    {
+      const auto &dh     = discretization.dof_handler();
+      const auto &pt     = *discretization.partitioner();
+      const auto &bodies = discretization.bodies();
+      for (const auto &cell : dh.active_cell_iterators())
+        if (cell->is_locally_owned() && !is_converted(converted_cells, cell->active_cell_index()))
+          for (unsigned int v = 0; v < 8; ++v)
+            {
+              // flag component 1: intact cells at the node; component 2: body + 1.
+              const unsigned int j = pt.global_to_local(cell->vertex_dof_index(v, 0));
+              nodal.flag.local_element(j + 1) += 1;
+            }
+      for (const auto &cell : dh.active_cell_iterators())
+        if (cell->is_locally_owned() && is_converted(converted_cells, cell->active_cell_index()))
+          add_converted_cell(cell, pt, converted_cells, bodies[cell->material_id()].name, interpolating_faces, nodal);
+      nodal.volume.compress(VectorOperation::add);
+      nodal.area.compress(VectorOperation::add);
+      nodal.spacing.compress(VectorOperation::max);
+      // Components 0 and 2 are maxima, component 1 a count: the count is summed separately.
+      mesh::Vector intact(discretization.partitioner());
+      for (unsigned int j = 0; j < nodal.flag.locally_owned_size() + pt.n_ghost_indices(); j += 3)
+        {
+          intact.local_element(j)         = nodal.flag.local_element(j + 1);
+          nodal.flag.local_element(j + 1) = 0;
+        }
+      intact.compress(VectorOperation::add);
+      nodal.flag.compress(VectorOperation::max);
+      for (unsigned int j = 0; j < nodal.flag.locally_owned_size(); j += 3)
+        nodal.flag.local_element(j + 1) = intact.local_element(j);
+    }
+
+    /// Connected components of the converted cells (through shared nodes).
+    struct Components
+    {
+      /// Union-find parents by global node id.
+      std::map<std::uint64_t, std::uint64_t> parent;
+      /// Component index by root, numbered in the order of the roots.
+      std::map<std::uint64_t, unsigned int> component_of_root;
+    };
+
+    /// The connected components of the converted cells of all ranks (8 node ids per cell in
+    /// @p cell_nodes). The label is the smallest global node id, so it does not depend on the
+    /// partition. @note Collective.
+    Components
+    connect_components(MPI_Comm comm, const std::vector<std::uint64_t> &cell_nodes)
+    {
+      Components out;
+      auto      &parent = out.parent;
+      for (const auto &part : Utilities::MPI::all_gather(comm, cell_nodes))
+        for (std::size_t c = 0; c < part.size(); c += 8)
+          {
+            for (unsigned int v = 0; v < 8; ++v)
+              parent.emplace(part[c + v], part[c + v]);
+            for (unsigned int v = 1; v < 8; ++v)
+              {
+                const auto a = find_root(parent, part[c]), b = find_root(parent, part[c + v]);
+                if (a != b)
+                  parent[std::max(a, b)] = std::min(a, b);
+              }
+          }
+      for (auto &[node, p] : parent)
+        {
+          const auto r = find_root(parent, node);
+          out.component_of_root.emplace(r, 0);
+        }
+      unsigned int c = 0;
+      for (auto &[root, index] : out.component_of_root)
+        index = c++;
+      return out;
+    }
+
+    /// The table rows (`record` doubles each, Field order) of this rank's particles: the owned
+    /// nodes with a volume.
+    std::vector<double>
+    particle_rows(const mesh::Discretization &discretization, const NodalFields &nodal, Components &components)
+    {
+      const auto         &pt = *discretization.partitioner();
+      const auto         &X  = discretization.reference_positions();
+      std::vector<double> mine;
+      for (unsigned int j = 0; j < pt.locally_owned_size(); j += 3)
+        if (nodal.volume.local_element(j) > 0)
+          {
+            const std::uint64_t id        = pt.local_to_global(j) / 3;
+            const bool          interface = nodal.flag.local_element(j + 1) > 0;
+            const double        row[record] = {
+              double(id),
+              X.local_element(j),
+              X.local_element(j + 1),
+              X.local_element(j + 2),
+              nodal.volume.local_element(j),
+              nodal.spacing.local_element(j),
+              nodal.spacing.local_element(j + 1),
+              nodal.spacing.local_element(j + 2),
+              nodal.area.local_element(j),
+              nodal.area.local_element(j + 1),
+              nodal.area.local_element(j + 2),
+              interface ? 1. : nodal.flag.local_element(j),
+              nodal.flag.local_element(j + 2) - 1,
+              interface ? 1. : 0.,
+              double(components.component_of_root.at(find_root(components.parent, id)))};
+            mine.insert(mine.end(), row, row + record);
+          }
+      return mine;
+    }
+
+    /// The particle table of all ranks, sorted by global id.
+    struct ParticleTable
+    {
+      /// The rows of every rank (rows point into them).
+      std::vector<std::vector<double>> all;
+      /// Row of every particle, by global id.
+      std::vector<const double *> rows;
+      /// 1 where the particle is owned by this rank.
+      std::vector<unsigned char> owned;
+    };
+
+    /// Gathers the rows @p mine of every rank into one table sorted by id. @note Collective.
+    ParticleTable
+    gather_table(MPI_Comm comm, const std::vector<double> &mine)
+    {
+      const unsigned int rank = Utilities::MPI::this_mpi_process(comm);
+      ParticleTable      out;
+      out.all = Utilities::MPI::all_gather(comm, mine);
+      struct Entry
+      {
+        const double *row;
+        bool          owned;
+      };
+      std::vector<Entry> table;
+      for (unsigned int r = 0; r < out.all.size(); ++r)
+        for (std::size_t p = 0; p < out.all[r].size(); p += record)
+          table.push_back({&out.all[r][p], r == rank});
+      std::sort(table.begin(), table.end(), [](const Entry &a, const Entry &b) { return a.row[f_id] < b.row[f_id]; });
+      for (const auto &entry : table)
+        {
+          out.rows.push_back(entry.row);
+          out.owned.push_back(entry.owned ? 1 : 0);
+        }
+      return out;
+    }
+
+    /// The cloud of every particle of @p table and the owned ones, grouped by body (hence by
+    /// material), in id order within a body.
+    void
+    fill_cloud(const ParticleTable &table, ParticleCloud &cloud, std::vector<unsigned int> &owned)
+    {
+      for (unsigned int p = 0; p < table.rows.size(); ++p)
+        {
+          const double *r = table.rows[p];
+          cloud.position.push_back(Point3{{r[f_x], r[f_x + 1], r[f_x + 2]}});
+          cloud.spacing.push_back(Point3{{r[f_h], r[f_h + 1], r[f_h + 2]}});
+          cloud.interpolating.push_back(r[f_interpolating] > 0 ? 1 : 0);
+          cloud.component.push_back(static_cast<unsigned int>(r[f_component]));
+          if (table.owned[p])
+            owned.push_back(p);
+        }
+      // Rows grouped by body (hence by material), in id order within a body.
+      std::stable_sort(owned.begin(), owned.end(), [&](const unsigned int a, const unsigned int b) {
+        return table.rows[a][f_body] < table.rows[b][f_body];
+      });
     }
   } // namespace
 
@@ -91,11 +344,50 @@ namespace shard::particles
   {
     MPI_Comm           comm = discretization.communicator();
     const unsigned int rank = Utilities::MPI::this_mpi_process(comm);
-    prepared_broken_        = broken_;
-    prepared_free_          = free_;
-    rk_.support             = support_text_ == "sphere" ? Support::sphere : Support::box;
-    body_names_             = base::split(body_names_text_, ',');
-    const auto &bodies      = discretization.bodies();
+    select_bodies(discretization, source);
+    unsigned long long n_cells = 0;
+    for (const auto &cell : discretization.dof_handler().active_cell_iterators())
+      n_cells += cell->is_locally_owned() && is_converted(converted_cells, cell->active_cell_index());
+    active_ = Utilities::MPI::sum(n_cells, comm) > 0;
+    clear_particles();
+    if (!active())
+      return;
+    if (rank == 0 && !rk_.warning().empty())
+      std::cerr << "warning: E - Particles: " << rk_.warning() << "\n";
+
+    NodalFields nodal(discretization.partitioner());
+    sum_nodal_fields(discretization, converted_cells, interpolating_faces, nodal);
+    Components components = connect_components(comm, nodal.cell_nodes);
+    n_components_         = components.component_of_root.size();
+
+    // The table of this rank's particles, then of all ranks.
+    const ParticleTable table = gather_table(comm, particle_rows(discretization, nodal, components));
+    n_global_                 = table.rows.size();
+    ParticleCloud             cloud;
+    std::vector<unsigned int> owned;
+    fill_cloud(table, cloud, owned);
+    try
+      {
+        stencils_ = build_local_stencils(cloud, owned, rk_);
+      }
+    catch (const std::exception &e)
+      {
+        throw base::InputError(std::string("E - Particles: cannot build the RK stencils: ") + e.what());
+      }
+    add_two_hop_ghosts(discretization, table.rows);
+    set_compact_arrays(cloud, table.rows);
+    set_owned_arrays(table.rows, owned);
+    report_fallback(comm, cloud);
+  }
+
+  void
+  ParticleSet::select_bodies(const mesh::Discretization &discretization, const base::PrmSource &source)
+  {
+    prepared_broken_   = broken_;
+    prepared_free_     = free_;
+    rk_.support        = support_text_ == "sphere" ? Support::sphere : Support::box;
+    body_names_        = base::split(body_names_text_, ',');
+    const auto &bodies = discretization.bodies();
     particle_body_.assign(bodies.size(), false);
     for (const auto &name : body_names_)
       {
@@ -104,13 +396,11 @@ namespace shard::particles
           source.fail(sections::particles + "/bodies", body_names_text_, "no body named '" + name + "' in 'B - Mesh/body names'.");
         particle_body_[b] = true;
       }
-    const auto converted = [&](const unsigned int cell) {
-      return cell < converted_cells.size() && converted_cells[cell];
-    };
-    unsigned long long n_cells = 0;
-    for (const auto &cell : discretization.dof_handler().active_cell_iterators())
-      n_cells += cell->is_locally_owned() && converted(cell->active_cell_index());
-    active_ = Utilities::MPI::sum(n_cells, comm) > 0;
+  }
+
+  void
+  ParticleSet::clear_particles()
+  {
     stencils_ = LocalStencils();
     local_dof_.clear();
     volume_.clear();
@@ -122,185 +412,17 @@ namespace shard::particles
     interface_.clear();
     component_.clear();
     n_global_ = 0;
-    if (!active())
-      return;
-    if (rank == 0 && !rk_.warning().empty())
-      std::cerr << "warning: E - Particles: " << rk_.warning() << "\n";
+  }
 
-    // Nodal volume, spacing, outward area vector of the converted region, the interpolating
-    // flag, the body and the number of intact (unconverted) cells, summed over cells.
-    const auto  &dh = discretization.dof_handler();
-    const auto  &pt = *discretization.partitioner();
-    mesh::Vector volume(discretization.partitioner()), spacing(discretization.partitioner()),
-      area(discretization.partitioner()), flag(discretization.partitioner());
-    std::vector<std::uint64_t> cell_nodes; // 8 global node ids per owned converted cell
-    for (const auto &cell : dh.active_cell_iterators())
-      if (cell->is_locally_owned() && !converted(cell->active_cell_index()))
-        for (unsigned int v = 0; v < 8; ++v)
-          {
-            // flag component 1: intact cells at the node; component 2: body + 1.
-            const unsigned int j = pt.global_to_local(cell->vertex_dof_index(v, 0));
-            flag.local_element(j + 1) += 1;
-          }
-    for (const auto &cell : dh.active_cell_iterators())
-      if (cell->is_locally_owned() && converted(cell->active_cell_index()))
-        {
-          double x[8][3], B[8][3], lo[3], hi[3];
-          for (unsigned int v = 0; v < 8; ++v)
-            for (unsigned int c = 0; c < 3; ++c)
-              x[v][c] = cell->vertex(v)[c];
-          const double ve = fe::hex_volume_gradient(x, B);
-          for (unsigned int c = 0; c < 3; ++c)
-            {
-              lo[c] = hi[c] = x[0][c];
-              for (unsigned int v = 1; v < 8; ++v)
-                lo[c] = std::min(lo[c], x[v][c]), hi[c] = std::max(hi[c], x[v][c]);
-            }
-          for (unsigned int v = 0; v < 8; ++v)
-            {
-              const unsigned int j = pt.global_to_local(cell->vertex_dof_index(v, 0));
-              volume.local_element(j) += ve / 8;
-              flag.local_element(j + 2) = cell->material_id() + 1;
-              for (unsigned int c = 0; c < 3; ++c)
-                spacing.local_element(j + c) = std::max(spacing.local_element(j + c), hi[c] - lo[c]);
-              cell_nodes.push_back(cell->vertex_dof_index(v, 0) / 3);
-            }
-          const std::string &body_name = bodies[cell->material_id()].name;
-          for (const unsigned int f : cell->face_indices())
-            {
-              // Faces of the converted region: the body's surface and the interface to intact cells.
-              const bool surface = cell->face(f)->at_boundary();
-              if (!surface && converted(cell->neighbor(f)->active_cell_index()))
-                continue;
-              const auto face = cell->face(f);
-              const auto n    = mesh::nodal_area_vectors(cell, f);
-              bool       interpolating = false;
-              if (surface)
-                for (const auto &[b, id] : interpolating_faces)
-                  interpolating |= b == body_name && (id < 0 || id == static_cast<int>(face->boundary_id()));
-              for (unsigned int v = 0; v < 4; ++v)
-                {
-                  const unsigned int j = pt.global_to_local(face->vertex_dof_index(v, 0));
-                  for (unsigned int c = 0; c < 3; ++c)
-                    area.local_element(j + c) += n[v][c];
-                  if (interpolating)
-                    flag.local_element(j) = 1;
-                }
-            }
-        }
-    volume.compress(VectorOperation::add);
-    area.compress(VectorOperation::add);
-    spacing.compress(VectorOperation::max);
-    // Components 0 and 2 are maxima, component 1 a count: the count is summed separately.
-    {
-      mesh::Vector intact(discretization.partitioner());
-      for (unsigned int j = 0; j < flag.locally_owned_size() + pt.n_ghost_indices(); j += 3)
-        {
-          intact.local_element(j) = flag.local_element(j + 1);
-          flag.local_element(j + 1) = 0;
-        }
-      intact.compress(VectorOperation::add);
-      flag.compress(VectorOperation::max);
-      for (unsigned int j = 0; j < flag.locally_owned_size(); j += 3)
-        flag.local_element(j + 1) = intact.local_element(j);
-    }
-
-    // Connected components of the converted cells (through shared nodes): the RK supports do
-    // not reach across components, and the correction's null space is per component. The
-    // label is the smallest global node id, so it does not depend on the partition.
-    std::map<std::uint64_t, std::uint64_t> parent;
-    for (const auto &part : Utilities::MPI::all_gather(comm, cell_nodes))
-      for (std::size_t c = 0; c < part.size(); c += 8)
-        {
-          for (unsigned int v = 0; v < 8; ++v)
-            parent.emplace(part[c + v], part[c + v]);
-          for (unsigned int v = 1; v < 8; ++v)
-            {
-              const auto a = find_root(parent, part[c]), b = find_root(parent, part[c + v]);
-              if (a != b)
-                parent[std::max(a, b)] = std::min(a, b);
-            }
-        }
-    std::map<std::uint64_t, unsigned int> component_of_root;
-    for (auto &[node, p] : parent)
-      {
-        const auto r = find_root(parent, node);
-        component_of_root.emplace(r, 0);
-      }
-    {
-      unsigned int c = 0;
-      for (auto &[root, index] : component_of_root)
-        index = c++;
-    }
-    n_components_ = component_of_root.size();
-
-    // The table of this rank's particles, then of all ranks.
-    const auto         &X = discretization.reference_positions();
-    std::vector<double> mine;
-    for (unsigned int j = 0; j < pt.locally_owned_size(); j += 3)
-      if (volume.local_element(j) > 0)
-          {
-            const std::uint64_t id = pt.local_to_global(j) / 3;
-            const bool interface   = flag.local_element(j + 1) > 0;
-            const double row[record] = {double(id),
-                                        X.local_element(j),
-                                        X.local_element(j + 1),
-                                        X.local_element(j + 2),
-                                        volume.local_element(j),
-                                        spacing.local_element(j),
-                                        spacing.local_element(j + 1),
-                                        spacing.local_element(j + 2),
-                                        area.local_element(j),
-                                        area.local_element(j + 1),
-                                        area.local_element(j + 2),
-                                        interface ? 1. : flag.local_element(j),
-                                        flag.local_element(j + 2) - 1,
-                                        interface ? 1. : 0.,
-                                        double(component_of_root.at(find_root(parent, id)))};
-            mine.insert(mine.end(), row, row + record);
-          }
-    const auto all = Utilities::MPI::all_gather(comm, mine);
-    struct Entry
-    {
-      const double *row;
-      bool          owned;
-    };
-    std::vector<Entry> table;
-    for (unsigned int r = 0; r < all.size(); ++r)
-      for (std::size_t p = 0; p < all[r].size(); p += record)
-        table.push_back({&all[r][p], r == rank});
-    std::sort(table.begin(), table.end(), [](const Entry &a, const Entry &b) { return a.row[f_id] < b.row[f_id]; });
-    n_global_ = table.size();
-
-    ParticleCloud             cloud;
-    std::vector<unsigned int> owned;
-    for (unsigned int p = 0; p < table.size(); ++p)
-      {
-        const double *r = table[p].row;
-        cloud.position.push_back(Point3{{r[f_x], r[f_x + 1], r[f_x + 2]}});
-        cloud.spacing.push_back(Point3{{r[f_h], r[f_h + 1], r[f_h + 2]}});
-        cloud.interpolating.push_back(r[f_interpolating] > 0 ? 1 : 0);
-        cloud.component.push_back(static_cast<unsigned int>(r[f_component]));
-        if (table[p].owned)
-          owned.push_back(p);
-      }
-    // Rows grouped by body (hence by material), in id order within a body.
-    std::stable_sort(owned.begin(), owned.end(),
-                     [&](const unsigned int a, const unsigned int b) { return table[a].row[f_body] < table[b].row[f_body]; });
-    try
-      {
-        stencils_ = build_local_stencils(cloud, owned, rk_);
-      }
-    catch (const std::exception &e)
-      {
-        throw base::InputError(std::string("E - Particles: cannot build the RK stencils: ") + e.what());
-      }
-
+  void
+  ParticleSet::add_two_hop_ghosts(mesh::Discretization &discretization, const std::vector<const double *> &rows)
+  {
     // Two-hop coefficients become ghosts of the one distributed vector.
-    IndexSet extra(dh.n_dofs());
+    const auto &pt = *discretization.partitioner();
+    IndexSet    extra(discretization.dof_handler().n_dofs());
     for (const unsigned int p : stencils_.cloud_index)
       {
-        const types::global_dof_index g = 3 * static_cast<types::global_dof_index>(table[p].row[f_id]);
+        const types::global_dof_index g = 3 * static_cast<types::global_dof_index>(rows[p][f_id]);
         if (!pt.in_local_range(g))
           extra.add_range(g, g + 3);
       }
@@ -308,9 +430,12 @@ namespace shard::particles
     const auto &np = *discretization.partitioner();
     local_dof_.resize(stencils_.n_k);
     for (unsigned int k = 0; k < stencils_.n_k; ++k)
-      local_dof_[k] =
-        np.global_to_local(3 * static_cast<types::global_dof_index>(table[stencils_.cloud_index[k]].row[f_id]));
+      local_dof_[k] = np.global_to_local(3 * static_cast<types::global_dof_index>(rows[stencils_.cloud_index[k]][f_id]));
+  }
 
+  void
+  ParticleSet::set_compact_arrays(const ParticleCloud &cloud, const std::vector<const double *> &rows)
+  {
     // Compact arrays for rebuilding rows after bonds break; bonds broken before this rebuild
     // (conversion during the run) stay broken.
     compact_id_.resize(stencils_.n_k);
@@ -326,7 +451,7 @@ namespace shard::particles
     for (unsigned int k = 0; k < stencils_.n_k; ++k)
       {
         const unsigned int p = stencils_.cloud_index[k];
-        compact_id_[k]       = static_cast<unsigned long long>(table[p].row[f_id]);
+        compact_id_[k]       = static_cast<unsigned long long>(rows[p][f_id]);
         compact_position_[k] = cloud.position[p];
         compact_radius_[k]   = rk_.support_radius(cloud.spacing[p]);
       }
@@ -336,7 +461,11 @@ namespace shard::particles
     a_intact_.assign(stencils_.a.n_entries(), 1);
     g_intact_.assign(stencils_.g.n_entries(), 1);
     rebuild_broken_rows();
+  }
 
+  void
+  ParticleSet::set_owned_arrays(const std::vector<const double *> &rows, const std::vector<unsigned int> &owned)
+  {
     const unsigned int n = stencils_.n_i;
     volume_.resize(n);
     area_.resize(3 * n);
@@ -348,7 +477,7 @@ namespace shard::particles
     component_.resize(n);
     for (unsigned int i = 0; i < n; ++i)
       {
-        const double *r = table[owned[i]].row;
+        const double *r = rows[owned[i]];
         volume_[i]      = r[f_v];
         for (unsigned int c = 0; c < 3; ++c)
           {
@@ -363,10 +492,15 @@ namespace shard::particles
         if (!(volume_[i] > 0))
           throw base::InputError("E - Particles: particle " + std::to_string(global_id_[i]) + " has no volume");
       }
+  }
 
+  void
+  ParticleSet::report_fallback(MPI_Comm comm, const ParticleCloud &cloud) const
+  {
     // Report particles on the Shepard fallback (ill-conditioned moment matrix).
-    unsigned int n_fallback = stencils_.fallback.size();
-    for (unsigned int i = 0; i < n; ++i)
+    const unsigned int rank       = Utilities::MPI::this_mpi_process(comm);
+    unsigned int       n_fallback = stencils_.fallback.size();
+    for (unsigned int i = 0; i < stencils_.n_i; ++i)
       n_fallback += stencils_.a.fallback[i] && !stencils_.g.fallback[i];
     const unsigned int total_fallback = Utilities::MPI::sum(n_fallback, comm);
     if (total_fallback > 0)

@@ -133,6 +133,178 @@ namespace shard::particles
     {
       throw std::invalid_argument("build_rk_stencil: " + what);
     }
+
+    /// Checks the input of build_rk_stencil(). @throws std::invalid_argument
+    void
+    check_stencil_input(const std::vector<Point3> &eval_points, const std::vector<Point3> &particle_positions,
+                        const std::vector<Point3> &support_radii, const CsrPattern &neighbors)
+    {
+      const std::size_t n_particles = particle_positions.size();
+      if (n_particles > std::numeric_limits<unsigned int>::max())
+        throw_invalid("too many particles for unsigned int indices");
+      if (support_radii.size() != n_particles)
+        throw_invalid("support_radii must have one entry per particle");
+      for (const Point3 &a : support_radii)
+        for (unsigned int k = 0; k < 3; ++k)
+          if (!(a[k] > 0.0) || !std::isfinite(a[k]))
+            throw_invalid("support radii must be positive and finite");
+      if (neighbors.row_offsets.size() != eval_points.size() + 1)
+        throw_invalid("neighbors must have one row per evaluation point");
+      if (neighbors.row_offsets.front() != 0 || neighbors.row_offsets.back() != neighbors.columns.size())
+        throw_invalid("neighbors.row_offsets must start at 0 and end at columns.size()");
+      for (std::size_t r = 0; r < eval_points.size(); ++r)
+        if (neighbors.row_offsets[r + 1] < neighbors.row_offsets[r])
+          throw_invalid("neighbors.row_offsets must not decrease");
+      for (const unsigned int c : neighbors.columns)
+        if (c >= n_particles)
+          throw_invalid("neighbor index out of range");
+    }
+
+    /// One row of a stencil under construction: evaluation point X, entries [begin, end) of
+    /// columns, psi and (times 3) grad.
+    struct StencilRow
+    {
+      const Point3       &X;
+      const unsigned int  begin, end;
+      const unsigned int *columns;
+      double             *psi, *grad;
+    };
+
+    /// Pass 1 over a row: what the kernel sums tell.
+    struct KernelSums
+    {
+      /// Entries with a positive weight.
+      unsigned int n_weighted = 0;
+      /// Scaling lengths: the largest support radius per direction of the weighted entries.
+      double s[3] = {0.0, 0.0, 0.0};
+      /// Sum of the kernel values and of their gradients.
+      double sum_phi = 0.0, sum_dphi[3] = {0.0, 0.0, 0.0};
+    };
+
+    /// Pass 1: kernel values and gradients (stored in place in psi and grad), scaling lengths.
+    KernelSums
+    kernel_pass(const StencilRow &row, const std::vector<Point3> &particle_positions,
+                const std::vector<Point3> &support_radii, const Support support)
+    {
+      KernelSums out;
+      for (unsigned int e = row.begin; e < row.end; ++e)
+        {
+          const unsigned int I  = row.columns[e];
+          const Point3      &XI = particle_positions[I];
+          const Point3      &aI = support_radii[I];
+          const Point3       r  = {{row.X[0] - XI[0], row.X[1] - XI[1], row.X[2] - XI[2]}};
+          Point3             g;
+          const double       w = kernel_value_and_gradient(r, aI, support, g);
+          row.psi[e]           = w;
+          for (unsigned int k = 0; k < 3; ++k)
+            row.grad[3 * e + k] = g[k];
+          if (w > 0.0)
+            {
+              ++out.n_weighted;
+              for (unsigned int k = 0; k < 3; ++k)
+                out.s[k] = std::max(out.s[k], aI[k]);
+            }
+          out.sum_phi += w;
+          for (unsigned int k = 0; k < 3; ++k)
+            out.sum_dphi[k] += g[k];
+        }
+      return out;
+    }
+
+    /// Pass 2: the moment matrix M of the basis H = [1, (X - X_I)/s] and its derivatives M_,k.
+    void
+    moment_pass(const StencilRow &row, const std::vector<Point3> &particle_positions, const double (&s)[3],
+                double (&M)[4][4], double (&dM)[3][4][4])
+    {
+      const Point3 &X = row.X;
+      // The H H^T Phi_,k part of the derivatives (upper triangles).
+      for (unsigned int e = row.begin; e < row.end; ++e)
+        {
+          const double w = row.psi[e];
+          if (w == 0.0)
+            continue;
+          const Point3 &XI   = particle_positions[row.columns[e]];
+          const double  H[4] = {1.0, (X[0] - XI[0]) / s[0], (X[1] - XI[1]) / s[1], (X[2] - XI[2]) / s[2]};
+          const double *g    = row.grad + 3 * e;
+          for (unsigned int p = 0; p < 4; ++p)
+            for (unsigned int q = p; q < 4; ++q)
+              {
+                const double hh = H[p] * H[q];
+                M[p][q] += hh * w;
+                dM[0][p][q] += hh * g[0];
+                dM[1][p][q] += hh * g[1];
+                dM[2][p][q] += hh * g[2];
+              }
+        }
+      for (unsigned int p = 0; p < 4; ++p)
+        for (unsigned int q = 0; q < p; ++q)
+          {
+            M[p][q] = M[q][p];
+            for (unsigned int k = 0; k < 3; ++k)
+              dM[k][p][q] = dM[k][q][p];
+          }
+      // sum_I (e_{k+1} H^T + H e_{k+1}^T) Phi / s_k = (e_{k+1} m^T + m e_{k+1}^T) / s_k, m = M e_0
+      for (unsigned int k = 0; k < 3; ++k)
+        for (unsigned int p = 0; p < 4; ++p)
+          {
+            dM[k][k + 1][p] += M[p][0] / s[k];
+            dM[k][p][k + 1] += M[p][0] / s[k];
+          }
+    }
+
+    /// Shepard functions of a row: Psi = Phi / S, grad Psi = grad Phi / S - Phi grad S / S^2.
+    void
+    shepard_row(const StencilRow &row, const KernelSums &sums)
+    {
+      const double invS = 1.0 / sums.sum_phi;
+      for (unsigned int e = row.begin; e < row.end; ++e)
+        {
+          const double w = row.psi[e];
+          row.psi[e]     = w * invS;
+          for (unsigned int k = 0; k < 3; ++k)
+            row.grad[3 * e + k] = (row.grad[3 * e + k] - w * invS * sums.sum_dphi[k]) * invS;
+        }
+    }
+
+    /// The RK functions of a row from the factor L D L^T of M: b_0 = M^{-1} H(0),
+    /// b_k = -M^{-1} M_,k b_0, then pass 3: Psi_I = Phi b0.H,
+    /// Psi_I,k = Phi b_k.H + Phi b0_{k+1} / s_k + Phi_,k b0.H.
+    void
+    rk_row(const StencilRow &row, const std::vector<Point3> &particle_positions, const double (&s)[3],
+           const double (&L)[4][4], const double (&D)[4], const double (&dM)[3][4][4])
+    {
+      double b0[4] = {1.0, 0.0, 0.0, 0.0};
+      ldlt_solve(L, D, b0);
+      double b[3][4];
+      for (unsigned int k = 0; k < 3; ++k)
+        {
+          for (unsigned int p = 0; p < 4; ++p)
+            {
+              double v = 0.0;
+              for (unsigned int q = 0; q < 4; ++q)
+                v += dM[k][p][q] * b0[q];
+              b[k][p] = -v;
+            }
+          ldlt_solve(L, D, b[k]);
+        }
+
+      const Point3 &X = row.X;
+      for (unsigned int e = row.begin; e < row.end; ++e)
+        {
+          const double w = row.psi[e];
+          if (w == 0.0)
+            continue;
+          const Point3 &XI   = particle_positions[row.columns[e]];
+          const double  H[4] = {1.0, (X[0] - XI[0]) / s[0], (X[1] - XI[1]) / s[1], (X[2] - XI[2]) / s[2]};
+          const double  hb0  = b0[0] + H[1] * b0[1] + H[2] * b0[2] + H[3] * b0[3];
+          row.psi[e]         = w * hb0;
+          for (unsigned int k = 0; k < 3; ++k)
+            {
+              const double hbk    = b[k][0] + H[1] * b[k][1] + H[2] * b[k][2] + H[3] * b[k][3];
+              row.grad[3 * e + k] = w * hbk + w * b0[k + 1] / s[k] + row.grad[3 * e + k] * hb0;
+            }
+        }
+    }
   } // namespace
 
 
@@ -285,33 +457,13 @@ namespace shard::particles
                    const RkParameters        &params)
   {
     params.check();
-
-    // ---- consistency of the input
-    const std::size_t n_particles = particle_positions.size();
-    if (n_particles > std::numeric_limits<unsigned int>::max())
-      throw_invalid("too many particles for unsigned int indices");
-    if (support_radii.size() != n_particles)
-      throw_invalid("support_radii must have one entry per particle");
-    for (const Point3 &a : support_radii)
-      for (unsigned int k = 0; k < 3; ++k)
-        if (!(a[k] > 0.0) || !std::isfinite(a[k]))
-          throw_invalid("support radii must be positive and finite");
-    if (neighbors.row_offsets.size() != eval_points.size() + 1)
-      throw_invalid("neighbors must have one row per evaluation point");
-    if (neighbors.row_offsets.front() != 0 || neighbors.row_offsets.back() != neighbors.columns.size())
-      throw_invalid("neighbors.row_offsets must start at 0 and end at columns.size()");
-    for (std::size_t r = 0; r < eval_points.size(); ++r)
-      if (neighbors.row_offsets[r + 1] < neighbors.row_offsets[r])
-        throw_invalid("neighbors.row_offsets must not decrease");
-    for (const unsigned int c : neighbors.columns)
-      if (c >= n_particles)
-        throw_invalid("neighbor index out of range");
+    check_stencil_input(eval_points, particle_positions, support_radii, neighbors);
 
     const Support support = params.support;
     const double  limit   = params.rcond_limit;
 
     Stencil st;
-    st.n_columns   = static_cast<unsigned int>(n_particles);
+    st.n_columns   = static_cast<unsigned int>(particle_positions.size());
     st.row_offsets = neighbors.row_offsets;
     st.columns     = neighbors.columns;
     st.psi.assign(st.columns.size(), 0.0);
@@ -319,139 +471,33 @@ namespace shard::particles
     st.fallback.assign(eval_points.size(), 0);
     st.rcond.assign(eval_points.size(), 0.0);
 
-    double *const psi  = st.psi.data();
-    double *const grad = st.grad.data();
-
-    for (std::size_t row = 0; row < eval_points.size(); ++row)
+    for (std::size_t r = 0; r < eval_points.size(); ++r)
       {
-        const Point3      &X     = eval_points[row];
-        const unsigned int begin = st.row_offsets[row];
-        const unsigned int end   = st.row_offsets[row + 1];
-
-        // ---- pass 1: kernel values and gradients (stored in place), scaling lengths
-        unsigned int n_weighted = 0;
-        double       s[3]       = {0.0, 0.0, 0.0};
-        double       sum_phi    = 0.0;
-        double       sum_dphi[3] = {0.0, 0.0, 0.0};
-        for (unsigned int e = begin; e < end; ++e)
-          {
-            const unsigned int I = st.columns[e];
-            const Point3      &XI = particle_positions[I];
-            const Point3      &aI = support_radii[I];
-            const Point3       r  = {{X[0] - XI[0], X[1] - XI[1], X[2] - XI[2]}};
-            Point3             g;
-            const double       w = kernel_value_and_gradient(r, aI, support, g);
-            psi[e]               = w;
-            for (unsigned int k = 0; k < 3; ++k)
-              grad[3 * e + k] = g[k];
-            if (w > 0.0)
-              {
-                ++n_weighted;
-                for (unsigned int k = 0; k < 3; ++k)
-                  s[k] = std::max(s[k], aI[k]);
-              }
-            sum_phi += w;
-            for (unsigned int k = 0; k < 3; ++k)
-              sum_dphi[k] += g[k];
-          }
-
-        if (n_weighted == 0)
+        const StencilRow row{eval_points[r], st.row_offsets[r], st.row_offsets[r + 1], st.columns.data(),
+                             st.psi.data(), st.grad.data()};
+        const KernelSums sums = kernel_pass(row, particle_positions, support_radii, support);
+        if (sums.n_weighted == 0)
           {
             // No neighbour left: a free point; all entries are zero already.
-            st.fallback[row] = 1;
-            st.rcond[row]    = 0.0;
+            st.fallback[r] = 1;
+            st.rcond[r]    = 0.0;
             continue;
           }
 
-        // ---- pass 2: moment matrix M and the H H^T Phi_,k part of its derivatives (upper triangles)
         double M[4][4]     = {};
         double dM[3][4][4] = {};
-        for (unsigned int e = begin; e < end; ++e)
+        moment_pass(row, particle_positions, sums.s, M, dM);
+        st.rcond[r] = reciprocal_condition(M);
+
+        double     L[4][4] = {};
+        double     D[4]    = {};
+        const bool use_rk  = sums.n_weighted >= 4 && st.rcond[r] >= limit && ldlt_factorize(M, L, D);
+        if (use_rk)
+          rk_row(row, particle_positions, sums.s, L, D, dM);
+        else
           {
-            const double w = psi[e];
-            if (w == 0.0)
-              continue;
-            const Point3 &XI   = particle_positions[st.columns[e]];
-            const double  H[4] = {1.0, (X[0] - XI[0]) / s[0], (X[1] - XI[1]) / s[1], (X[2] - XI[2]) / s[2]};
-            const double *g    = grad + 3 * e;
-            for (unsigned int p = 0; p < 4; ++p)
-              for (unsigned int q = p; q < 4; ++q)
-                {
-                  const double hh = H[p] * H[q];
-                  M[p][q] += hh * w;
-                  dM[0][p][q] += hh * g[0];
-                  dM[1][p][q] += hh * g[1];
-                  dM[2][p][q] += hh * g[2];
-                }
-          }
-        for (unsigned int p = 0; p < 4; ++p)
-          for (unsigned int q = 0; q < p; ++q)
-            {
-              M[p][q] = M[q][p];
-              for (unsigned int k = 0; k < 3; ++k)
-                dM[k][p][q] = dM[k][q][p];
-            }
-        // sum_I (e_{k+1} H^T + H e_{k+1}^T) Phi / s_k = (e_{k+1} m^T + m e_{k+1}^T) / s_k, m = M e_0
-        for (unsigned int k = 0; k < 3; ++k)
-          for (unsigned int p = 0; p < 4; ++p)
-            {
-              dM[k][k + 1][p] += M[p][0] / s[k];
-              dM[k][p][k + 1] += M[p][0] / s[k];
-            }
-
-        st.rcond[row] = reciprocal_condition(M);
-
-        double L[4][4] = {};
-        double D[4]    = {};
-        const bool use_rk = n_weighted >= 4 && st.rcond[row] >= limit && ldlt_factorize(M, L, D);
-
-        if (!use_rk)
-          {
-            // ---- Shepard: Psi = Phi / S, grad Psi = grad Phi / S - Phi grad S / S^2
-            st.fallback[row]  = 1;
-            const double invS = 1.0 / sum_phi;
-            for (unsigned int e = begin; e < end; ++e)
-              {
-                const double w = psi[e];
-                psi[e]         = w * invS;
-                for (unsigned int k = 0; k < 3; ++k)
-                  grad[3 * e + k] = (grad[3 * e + k] - w * invS * sum_dphi[k]) * invS;
-              }
-            continue;
-          }
-
-        // ---- b_0 = M^{-1} H(0), b_k = -M^{-1} M_,k b_0
-        double b0[4] = {1.0, 0.0, 0.0, 0.0};
-        ldlt_solve(L, D, b0);
-        double b[3][4];
-        for (unsigned int k = 0; k < 3; ++k)
-          {
-            for (unsigned int p = 0; p < 4; ++p)
-              {
-                double v = 0.0;
-                for (unsigned int q = 0; q < 4; ++q)
-                  v += dM[k][p][q] * b0[q];
-                b[k][p] = -v;
-              }
-            ldlt_solve(L, D, b[k]);
-          }
-
-        // ---- pass 3: Psi_I = Phi b0.H,
-        //      Psi_I,k = Phi b_k.H + Phi b0_{k+1} / s_k + Phi_,k b0.H
-        for (unsigned int e = begin; e < end; ++e)
-          {
-            const double w = psi[e];
-            if (w == 0.0)
-              continue;
-            const Point3 &XI   = particle_positions[st.columns[e]];
-            const double  H[4] = {1.0, (X[0] - XI[0]) / s[0], (X[1] - XI[1]) / s[1], (X[2] - XI[2]) / s[2]};
-            const double  hb0  = b0[0] + H[1] * b0[1] + H[2] * b0[2] + H[3] * b0[3];
-            psi[e]             = w * hb0;
-            for (unsigned int k = 0; k < 3; ++k)
-              {
-                const double hbk = b[k][0] + H[1] * b[k][1] + H[2] * b[k][2] + H[3] * b[k][3];
-                grad[3 * e + k]  = w * hbk + w * b0[k + 1] / s[k] + grad[3 * e + k] * hb0;
-              }
+            st.fallback[r] = 1;
+            shepard_row(row, sums);
           }
       }
     return st;

@@ -7,6 +7,7 @@
 #include <shard/base/parallel.h>
 #include <shard/base/progress.h>
 #include <shard/coupling/element_converter.h>
+#include <shard/output/run_summary.h>
 #include <shard/simulation/simulation.h>
 
 #include <deal.II/base/mpi.h>
@@ -31,16 +32,6 @@ namespace shard
   {
     using Clock = std::chrono::steady_clock;
     using base::Phase;
-
-    std::string
-    number(const double x)
-    {
-      if (!std::isfinite(x))
-        return "null";
-      std::ostringstream s;
-      s << std::setprecision(10) << x;
-      return s.str();
-    }
   } // namespace
 
 
@@ -656,94 +647,67 @@ namespace shard
     const double peak_rss = Utilities::MPI::max(1024. * usage.ru_maxrss, comm_);
     if (Utilities::MPI::this_mpi_process(comm_) != 0)
       return;
-    std::ostringstream j;
-    j << "{\n";
-    j << "  \"shard_version\": \"" << version_string << " (" << git_description << ")\",\n";
-    j << "  \"title\": \"" << base::json_escape(title_) << "\",\n";
-    j << "  \"parameter_file\": \"" << base::json_escape(source_.filename()) << "\",\n";
-    j << "  \"status\": \"" << result.status << "\",\n";
-    if (!result.message.empty())
-      j << "  \"message\": \"" << base::json_escape(result.message) << "\",\n";
-    j << "  \"steps\": " << state_.step << ",\n";
-    j << "  \"final_time\": " << number(state_.t) << ",\n";
-    j << "  \"last_dt\": " << number(state_.dt) << ",\n";
-    j << "  \"wall_time_s\": " << number(wall_time + max_time[0]) << ",\n";
-    j << "  \"n_elements\": " << discretization_.n_elements() << ",\n";
-    j << "  \"n_particles\": " << particles_.n_global() << ",\n";
-    j << "  \"n_converted_elements\": " << conversion_.n_converted() << ",\n";
-    j << "  \"conversion_events\": " << conversion_.n_events() << ",\n";
-    j << "  \"conversion_energy\": " << number(energy_.conversion_energy()) << ",\n";
-    j << "  \"broken_bonds\": " << bonds_.n_broken() << ",\n";
-    j << "  \"free_particles\": " << bonds_.n_free() << ",\n";
-    j << "  \"contact_rebuilds\": " << contact_.n_rebuilds() << ",\n";
+    output::RunSummary s;
+    s.version        = std::string(version_string) + " (" + git_description + ")";
+    s.title          = title_;
+    s.parameter_file = source_.filename();
+    s.status         = result.status;
+    s.message        = result.message;
+    s.steps          = state_.step;
+    s.final_time     = state_.t;
+    s.last_dt        = state_.dt;
+    s.wall_time      = wall_time + max_time[0];
+    s.n_elements     = discretization_.n_elements();
+    s.n_particles    = particles_.n_global();
+    s.n_converted_elements = conversion_.n_converted();
+    s.conversion_events    = conversion_.n_events();
+    s.conversion_energy    = energy_.conversion_energy();
+    s.broken_bonds         = bonds_.n_broken();
+    s.free_particles       = bonds_.n_free();
+    s.contact_rebuilds     = contact_.n_rebuilds();
     if (!last_fragments_.empty())
       {
         double total = 0, largest = 0;
         for (const auto &f : last_fragments_)
           total += f.mass, largest = std::max(largest, f.mass);
-        j << "  \"n_fragments\": " << last_fragments_.size() << ",\n";
-        j << "  \"fragment_mass_total\": " << number(total) << ",\n";
-        j << "  \"largest_fragment_mass\": " << number(largest) << ",\n";
-        j << "  \"fragments\": "
-          << output::summary_json(last_fragments_, last_fragments_time_, output_.dust_particles(),
-                                  output_.debris_axis())
-          << ",\n";
+        s.fragments.count        = last_fragments_.size();
+        s.fragments.total_mass   = total;
+        s.fragments.largest_mass = largest;
+        s.fragments.json =
+          output::summary_json(last_fragments_, last_fragments_time_, output_.dust_particles(), output_.debris_axis());
       }
-    j << "  \"correction_iterations\": " << spg_.correction_solve().iterations << ",\n";
-    j << "  \"n_mpi_ranks\": " << Utilities::MPI::n_mpi_processes(comm_) << ",\n";
-    j << "  \"n_threads\": " << base::n_threads() << ",\n";
-    j << "  \"energy_error\": " << number(energy_.error()) << ",\n";
-    j << "  \"max_abs_energy_error\": " << number(energy_.max_error()) << ",\n";
+    s.correction_iterations = spg_.correction_solve().iterations;
+    s.n_mpi_ranks           = Utilities::MPI::n_mpi_processes(comm_);
+    s.n_threads             = base::n_threads();
+    s.energy_error          = energy_.error();
+    s.max_abs_energy_error  = energy_.max_error();
     const double element_steps = work_steps_[0], particle_steps = work_steps_[1];
-    j << "  \"element_steps_per_s\": " << number(max_time[5] > 0 ? element_steps / max_time[5] : 0) << ",\n";
-    j << "  \"us_per_element_step\": " << number(element_steps > 0 ? 1e6 * max_time[5] / element_steps : 0)
-      << ",\n";
-    const double n_particles = particles_.n_global();
-    j << "  \"particle_steps_per_s\": " << number(max_time[6] > 0 ? particle_steps / max_time[6] : 0) << ",\n";
-    j << "  \"us_per_particle_step\": " << number(particle_steps > 0 ? 1e6 * max_time[6] / particle_steps : 0)
-      << ",\n";
-    j << "  \"particle_bytes\": " << number(memory[0]) << ",\n";
-    j << "  \"bytes_per_particle\": " << number(n_particles > 0 ? memory[0] / n_particles : 0) << ",\n";
-    j << "  \"n_dofs\": " << state_.d.size() << ",\n";
-    j << "  \"vector_bytes\": " << number(memory[1]) << ",\n";
-    j << "  \"vector_bytes_per_dof\": " << number(state_.d.size() > 0 ? memory[1] / state_.d.size() : 0) << ",\n";
-    j << "  \"element_bytes\": " << number(element_bytes) << ",\n";
-    j << "  \"bytes_per_element\": " << number(n_hexes > 0 ? element_bytes / n_hexes : 0) << ",\n";
-    j << "  \"peak_rss_bytes\": " << number(peak_rss) << ",\n";
-    const auto list = [&](const std::vector<double> &x) {
-      std::string out;
-      for (unsigned int r = 0; r < x.size(); ++r)
-        out += (r ? ", " : "") + number(x[r]);
-      return "[" + out + "]";
-    };
-    j << "  \"partition\": {\"particle_weight\": " << number(discretization_.particle_weight())
-      << ", \"elements_per_rank\": " << list(rank_elements_) << ", \"particles_per_rank\": " << list(rank_particles_)
-      << ", \"work_imbalance\": " << number(imbalance_) << ", \"work_imbalance_cell_count\": "
-      << number(imbalance_before_) << "},\n";
-    j << "  \"phase_time_by_rank_s\": [";
-    for (unsigned int r = 0; r < rank_times.size(); ++r)
-      j << (r ? ", " : "") << list(rank_times[r]);
-    j << "],\n";
-    j << "  \"phase_cpu_time_by_rank_s\": [";
-    for (unsigned int r = 0; r < rank_cpu.size(); ++r)
-      j << (r ? ", " : "") << list(rank_cpu[r]);
-    j << "],\n";
-    j << "  \"phase_time_s\": {";
+    s.element_steps_per_s      = max_time[5] > 0 ? element_steps / max_time[5] : 0;
+    s.us_per_element_step      = element_steps > 0 ? 1e6 * max_time[5] / element_steps : 0;
+    const double n_particles   = particles_.n_global();
+    s.particle_steps_per_s     = max_time[6] > 0 ? particle_steps / max_time[6] : 0;
+    s.us_per_particle_step     = particle_steps > 0 ? 1e6 * max_time[6] / particle_steps : 0;
+    s.particle_bytes           = memory[0];
+    s.bytes_per_particle       = n_particles > 0 ? memory[0] / n_particles : 0;
+    s.n_dofs                   = state_.d.size();
+    s.vector_bytes             = memory[1];
+    s.vector_bytes_per_dof     = state_.d.size() > 0 ? memory[1] / state_.d.size() : 0;
+    s.element_bytes            = element_bytes;
+    s.bytes_per_element        = n_hexes > 0 ? element_bytes / n_hexes : 0;
+    s.peak_rss_bytes           = peak_rss;
+    s.partition                = {discretization_.particle_weight(), rank_elements_, rank_particles_, imbalance_,
+                                  imbalance_before_};
+    s.phase_time_by_rank       = rank_times;
+    s.phase_cpu_time_by_rank   = rank_cpu;
     for (unsigned int p = 0; p < base::PhaseTimes::n_phases; ++p)
-      j << (p ? ", " : "") << "\"" << base::PhaseTimes::names()[p] << "\": " << number(max_time[p]);
-    j << "},\n";
-    j << "  \"results\": {";
+      s.phase_time.emplace_back(base::PhaseTimes::names()[p], max_time[p]);
     const auto names = quantities_.names();
     for (unsigned int i = 0; i < names.size(); ++i)
-      j << (i ? ", " : "") << "\"" << base::json_escape(names[i]) << "\": " << number(q_final_[i]) << ", \""
-        << base::json_escape(names[i]) << "_min\": " << number(q_min_[i]) << ", \"" << base::json_escape(names[i])
-        << "_max\": " << number(q_max_[i]);
-    j << "},\n";
-    j << "  \"files\": {\"history\": \"" << base::json_escape(output_.directory()) << "/history.csv\", \"fields\": \""
-      << base::json_escape(output_.pvd_path()) << "\", \"parameters\": \"" << base::json_escape(output_.directory())
-      << "/parameters.prm\"}\n";
-    j << "}\n";
-    base::write_file_atomically(output_.directory() + "/summary.json", j.str());
+      s.results.push_back({names[i], q_final_[i], q_min_[i], q_max_[i]});
+    s.history_file   = output_.directory() + "/history.csv";
+    s.field_file     = output_.pvd_path();
+    s.parameter_copy = output_.directory() + "/parameters.prm";
+    output::write_run_summary_file(s, output_.directory() + "/summary.json");
   }
 
 } // namespace shard

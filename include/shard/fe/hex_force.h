@@ -98,6 +98,12 @@ namespace shard::fe
      * @param[in] dt step size
      * @param[in] step step number, for diagnostics
      * @throws Instability for an inverted element or a non-finite stress.
+     *
+     * @note A long compute kernel on purpose (about 210 lines, one of the two functions of
+     * source/ above the 150-line limit of issue 27; doc/manual/architecture.md, "Long
+     * functions"): one loop does an element's kinematics, stress update and assembly, which
+     * must keep its summation order (the same bits for any thread count) and vectorizes over
+     * the batch as one unit; split into calls, the order and the vectorization are at stake.
      */
     ForceResult
     add_internal_forces(const mesh::Vector &d, const mesh::Vector &v, double dt, unsigned int step,

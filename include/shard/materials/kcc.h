@@ -280,6 +280,13 @@ namespace shard::materials
      * @param sig In: stress at the start; out: at the end (Pa).
      * @param st History slots of the point (in/out).
      * @return Dilatational wave speed of the final state (m/s).
+     *
+     * @note A long compute kernel on purpose (about 230 lines, one of the two functions of
+     * source/ above the 150-line limit of issue 27; doc/manual/architecture.md, "Long
+     * functions"): the update of one material point, whose branches of the K&C model (EOS and
+     * trial state, rate factor, return to the failure surface with the dilatancy coupled in,
+     * tension cutoff, damage and history) read and write the same local state; it is kept as
+     * one function so that the model reads in one place.
      */
     double
     update_point(const double *de,

@@ -106,5 +106,48 @@ namespace shard::output
 
     std::vector<Item>
     parse(std::string &error) const;
+
+    /// prepare(): throws InputError located through @p source for item @p it, reason @p why.
+    [[noreturn]] void
+    fail(const base::PrmSource &source, const Item &it, const std::string &why) const;
+
+    /// prepare(): the first argument of @p it names a body or 'all' (body -1).
+    void
+    resolve_body_or_all(Item &it, const base::PrmSource &source) const;
+
+    /// prepare() of `reaction` and `load`: the condition (and its type) and the component.
+    void
+    resolve_condition(Item &it, const base::PrmSource &source) const;
+
+    /// prepare() of `max_coordinate`, `min_coordinate` and `max_radius`: body, axis, boundary id, nodes.
+    void
+    resolve_extent(Item &it, const base::PrmSource &source) const;
+
+    /// prepare() of `odd_even`: the owned particles of the body and their signs (-1)^(i+j+k).
+    /// @note Collective.
+    void
+    resolve_odd_even(Item &it, const base::PrmSource &source) const;
+
+    /// prepare() of `kinetic_energy`: body, axis and the owned nodes in [from, to].
+    void
+    resolve_kinetic_energy(Item &it, const base::PrmSource &source) const;
+
+    /// prepare() of `l2_error` and `mean_velocity`: body, axis, the owned nodes; for l2_error
+    /// checks that the exact solution is finite at them. @note Collective.
+    void
+    resolve_body_nodes(Item &it, const base::PrmSource &source) const;
+
+    /// prepare() of `stress` and `velocity`: the component and the rank, element, particle or
+    /// node nearest the reference point. @note Collective.
+    void
+    resolve_point(Item &it, const base::PrmSource &source) const;
+
+    /// Sets the local element or owned particle nearest @p p in @p it; returns its distance.
+    double
+    nearest_stress_point(Item &it, const double (&p)[3]) const;
+
+    /// Sets the owned node nearest @p p in @p it; returns its distance.
+    double
+    nearest_node(Item &it, const double (&p)[3]) const;
   };
 } // namespace shard::output

@@ -388,6 +388,30 @@ namespace shard::particles
     /// Rebuilds the listed rows of A and G from their intact entries.
     void
     rebuild_rows(const std::vector<unsigned int> &a_rows, const std::vector<unsigned int> &g_rows);
+    /// prepare(), first part: remembers the broken bonds and free particles, reads `support`
+    /// and `bodies` and marks the particle bodies.
+    /// @throws base::InputError (through @p source) if a listed body does not exist.
+    void
+    select_bodies(const mesh::Discretization &discretization, const base::PrmSource &source);
+    /// prepare(): empties the stencils and the per-particle arrays.
+    void
+    clear_particles();
+    /// prepare(): adds the two-hop coefficients to the ghost set of @p discretization and sets
+    /// local_dof_; @p rows holds the particle table row of every cloud index.
+    void
+    add_two_hop_ghosts(mesh::Discretization &discretization, const std::vector<const double *> &rows);
+    /// prepare(): the per compact coefficient arrays for rebuilding rows after bonds break, then
+    /// rebuilds the rows of the bonds broken before (they stay broken across a rebuild).
+    void
+    set_compact_arrays(const ParticleCloud &cloud, const std::vector<const double *> &rows);
+    /// prepare(): volume, area vector, spacing, position, body, id, interface flag and component
+    /// of the owned particles, cloud indices @p owned in row order.
+    /// @throws base::InputError for a particle without volume.
+    void
+    set_owned_arrays(const std::vector<const double *> &rows, const std::vector<unsigned int> &owned);
+    /// prepare(): warns (rank 0) about particles on the Shepard fallback. @note Collective.
+    void
+    report_fallback(MPI_Comm comm, const ParticleCloud &cloud) const;
     unsigned long long              n_global_ = 0;
   };
 } // namespace shard::particles

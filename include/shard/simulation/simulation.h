@@ -240,6 +240,9 @@ namespace shard
     /// (assembled once per step, then reused by the history row and the field output).
     const mesh::Vector &
     physical_displacement();
+    /// Gathers the memory, timing and partition figures of all ranks and (rank 0) fills an
+    /// output::RunSummary and writes it to summary.json (output::write_run_summary_file()).
+    /// @note Collective.
     void
     write_summary(const RunResult &result, double wall_time, const base::PhaseTimes::Times &max_time) const;
     /// With particles: appends the fragments now to fragments.csv and keeps them for the
