@@ -73,13 +73,17 @@ def main():
                 s = run(os.path.abspath(binary), prm, extra, os.path.join(out, f"{name}_{which}_{i}"))
                 values[(name, which)].append(s[key])
                 print(f"run {i + 1}/{args.runs} {name:20s} {which:9s} {key} {s[key]:.4g}", flush=True)
-    print(f"\n{'row':20s} {'quantity':22s} {'reference':>12s} {'new':>12s} {'new/ref':>8s}")
+    # new/ref: ratio of the medians; paired: median of the ratios of the two runs of one round
+    # (they ran back to back, so a slow spell of the machine tends to hit both).
+    print(f"\n{'row':20s} {'quantity':22s} {'reference':>12s} {'new':>12s} {'new/ref':>8s} {'paired':>8s}")
     worst = 1.0
     for name, prm, extra, key in table:
-        ref, new = statistics.median(values[(name, 'reference')]), statistics.median(values[(name, 'new')])
+        refs, news = values[(name, 'reference')], values[(name, 'new')]
+        ref, new = statistics.median(refs), statistics.median(news)
         ratio = new / ref if ref > 0 else float("nan")
+        paired = statistics.median(n / r for n, r in zip(news, refs) if r > 0)
         worst = min(worst, ratio)
-        print(f"{name:20s} {key:22s} {ref:12.4g} {new:12.4g} {ratio:8.3f}")
+        print(f"{name:20s} {key:22s} {ref:12.4g} {new:12.4g} {ratio:8.3f} {paired:8.3f}")
     print(f"\nlowest ratio {worst:.3f} (medians of {args.runs} interleaved runs)")
 
 
