@@ -7,17 +7,13 @@
 
 namespace shard::base
 {
-  namespace
+  double
+  PhaseTimes::thread_cpu_time()
   {
-    /// CPU time of the calling thread (s).
-    double
-    thread_cpu_time()
-    {
-      timespec t{};
-      clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-      return t.tv_sec + 1e-9 * t.tv_nsec;
-    }
-  } // namespace
+    timespec t{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return t.tv_sec + 1e-9 * t.tv_nsec;
+  }
 
   const std::array<const char *, PhaseTimes::n_phases> &
   PhaseTimes::names()

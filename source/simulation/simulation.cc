@@ -105,7 +105,8 @@ namespace shard
   void
   Simulation::prepare()
   {
-    const auto start = Clock::now();
+    const auto   start     = Clock::now();
+    const double cpu_start = base::PhaseTimes::thread_cpu_time();
     discretization_.prepare(source_);
     for (const auto &b : discretization_.bodies())
       if (!materials_.has(b.material))
@@ -180,7 +181,8 @@ namespace shard
     measure_partition();
     if (checkpoint_.restarting())
       restore_state();
-    times_.add_wall(Phase::setup, std::chrono::duration<double>(Clock::now() - start).count());
+    times_.add(Phase::setup, std::chrono::duration<double>(Clock::now() - start).count(),
+               base::PhaseTimes::thread_cpu_time() - cpu_start);
   }
 
   void

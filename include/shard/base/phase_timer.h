@@ -8,6 +8,7 @@
 
 #include <mpi.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstdio>
@@ -72,19 +73,26 @@ namespace shard::base
       return Scope(*this, phase);
     }
 
-    /// Adds @p seconds of wall time to @p phase (the set-up, timed before the loop exists).
+    /// Adds @p wall seconds of wall time and @p cpu seconds of CPU time to @p phase (the
+    /// set-up, timed before the loop exists).
     void
-    add_wall(const Phase phase, const double seconds)
+    add(const Phase phase, const double wall, const double cpu)
     {
-      wall_[static_cast<unsigned int>(phase)] += seconds;
+      wall_[static_cast<unsigned int>(phase)] += wall;
+      cpu_[static_cast<unsigned int>(phase)] += cpu;
     }
 
-    /// Zeroes the CPU times (at the start of a run; the wall time of the set-up is kept).
+    /// Zeroes the CPU times of the step phases at the start of a run (the phases timed inside
+    /// the set-up are part of the set-up's time); the set-up's wall and CPU time are kept.
     void
     reset_cpu()
     {
-      cpu_.fill(0.);
+      std::fill(cpu_.begin() + 1, cpu_.end(), 0.);
     }
+
+    /// CPU time of the calling thread since it started (s): what Scope measures.
+    static double
+    thread_cpu_time();
 
     /// This rank's wall time per phase (s).
     const Times &

@@ -43,9 +43,11 @@ TEST(PhaseTimes, ScopeAddsToItsPhase)
       {
         EXPECT_EQ(times.wall()[p], 0.) << p;
       }
-  times.add_wall(Phase::setup, 1.5);
+  times.add(Phase::setup, 1.5, 0.5);
   EXPECT_EQ(times.wall()[0], 1.5);
+  EXPECT_EQ(times.cpu()[0], 0.5);
   times.reset_cpu();
   EXPECT_EQ(times.cpu()[fe], 0.);
+  EXPECT_EQ(times.cpu()[0], 0.5); // the set-up's CPU time is kept for summary.json
   EXPECT_EQ(times.max_wall(MPI_COMM_SELF), times.wall());
 }
