@@ -7,7 +7,7 @@ set -euo pipefail
 
 SHARD_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 SHARD_BUILD="${SHARD_BUILD:-$SHARD_ROOT/build}"
-SHARD_PACKAGES=(cmake make g++ git ccache python3 python3-matplotlib python3-numpy
+SHARD_PACKAGES=(cmake make g++ git ccache python3 python3-matplotlib python3-numpy python3-h5py
                 openmpi-bin libdeal.ii-dev libeigen3-dev libhdf5-mpi-dev libgtest-dev libsuitesparse-dev
                 libopenblas0-serial)
 

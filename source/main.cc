@@ -8,6 +8,7 @@
 #include <deal.II/base/mpi.h>
 
 #include <cstring>
+#include <filesystem>
 #include <iostream>
 
 namespace
@@ -220,7 +221,8 @@ main(int argc, char **argv)
                 std::cerr << "\nshard: run stopped: " << result.message
                           << "\nThe output written before this step is intact.\n";
               std::cerr << "\nResults in " << simulation.output_directory() << "/: summary.json, history.csv, "
-                        << "solution.pvd (open in ParaView)\n";
+                        << std::filesystem::path(simulation.field_series()).filename().string()
+                        << " (open in ParaView)\n";
             }
         }
       return result.exit_code;

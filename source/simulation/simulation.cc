@@ -707,7 +707,7 @@ namespace shard
     for (unsigned int i = 0; i < names.size(); ++i)
       s.results.push_back({names[i], q_final_[i], q_min_[i], q_max_[i]});
     s.history_file   = output_.directory() + "/history.csv";
-    s.field_file     = output_.pvd_path();
+    s.field_file     = output_.series_path();
     s.parameter_copy = output_.directory() + "/parameters.prm";
     output::write_run_summary_file(s, output_.directory() + "/summary.json");
   }

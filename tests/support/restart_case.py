@@ -7,7 +7,7 @@ Modes:
                  --np-write ranks with a checkpoint every --interval steps, stopped by
                  `max steps` --stop-after steps later than the first checkpoint, then restarts
                  from the checkpoint directory at --np-restart ranks to the end. With --rel 0
-                 (same rank count) history.csv, fragments.csv, the PVD series and the results of
+                 (same rank count) history.csv, fragments.csv, the PVD and XDMF series and the results of
                  summary.json must be byte- and bit-identical to the reference; otherwise they must agree to
                  --rel (run_case.py's scaled relative difference) and the largest difference is
                  printed.
@@ -77,7 +77,7 @@ def summary_values(path):
 def compare(args, ref, out, rel, failures):
     case = os.path.basename(args.case)
     if rel == 0:
-        for name in ["history.csv", "fragments.csv", "solution.pvd", "particles.pvd"]:
+        for name in ["history.csv", "fragments.csv", "solution.pvd", "particles.pvd", "solution.xdmf", "particles.xdmf"]:
             a, b = os.path.join(ref, name), os.path.join(out, name)
             if os.path.exists(a) != os.path.exists(b):
                 failures.append(f"{case}: {name} written by only one of the runs")

@@ -20,7 +20,9 @@ A case is a directory holding <case>.prm, or a path <case>.prm; beside the .prm 
                      a key "a/b" looks into object a (run: "results/x"; material-test:
                      "final_state/effective plastic strain"); "expected_key" instead of
                      "expected" compares with another key of the same summary.json; "sum_of": [keys]
-                     instead of "key" checks the sum of several keys (a mass balance).
+                     instead of "key" checks the sum of several keys (a mass balance); a last
+                     part "sum" or "max" of a key reduces a list (a per-rank list: the total or
+                     the largest rank). --summary FILE adds the checks of FILE (a variant).
   <case>.fragments   JSON list of checks on fragment_statistics.csv, each
                        {"name", "value", "expected", "where", "aggregate", "rel" | "abs", "source"}:
                      "value" and "expected" are Python expressions of a row's columns (numbers; `body`
@@ -53,6 +55,7 @@ import json
 import math
 import os
 import re
+import shlex
 import shutil
 import subprocess
 import sys
@@ -151,6 +154,19 @@ def check_files(args, outdir, case, failures):
             failures.append(f"{case}: {name} was written")
 
 
+def post_checks(args, outdir, case, failures):
+    """--post-check: run each command with the output directory as its first argument."""
+    # contrib/setup.sh installs numpy and h5py as Debian packages, i.e. for Debian's Python.
+    python = "/usr/bin/python3" if os.path.exists("/usr/bin/python3") else sys.executable
+    for command in args.post_check or []:
+        words = shlex.split(command)
+        p = subprocess.run([python, words[0], outdir] + words[1:], capture_output=True, text=True)
+        print(p.stdout.strip())
+        if p.returncode != 0:
+            print(p.stderr.strip())
+            failures.append(f"{case}: {os.path.basename(words[0])} failed ({p.returncode})")
+
+
 def check_case(args, outdir, failures):
     base = case_base(args)
     case = os.path.basename(base)
@@ -230,36 +246,40 @@ def check_case(args, outdir, failures):
             raise SystemExit(f"unknown check type {kind}")
         check_value(failures, case, f"{c['name']} ({c.get('source', '')})", value, c["expected"],
                     c.get("abs", 0.0), c.get("rel", 0.0))
-    if os.path.exists(base + ".summary"):
+    summary_checks = []
+    for path in ([base + ".summary"] if os.path.exists(base + ".summary") else []) + (args.summary or []):
+        with open(path) as f:
+            summary_checks += json.load(f)
+    if summary_checks:
         with open(os.path.join(outdir, "summary.json")) as f:
             summary = json.load(f)
-        with open(base + ".summary") as f:
-            for c in json.load(f):
-                def lookup(key):
-                    v = summary
-                    for part in key.split("/"):
+        for c in summary_checks:
+            def lookup(key):
+                v = summary
+                for part in key.split("/"):
+                    if isinstance(v, list) and part in ("sum", "max"):
+                        v = sum(v) if part == "sum" else max(v)
+                    else:
                         v = v[part]
-                    return v
-                if "sum_of" in c:
-                    c = dict(c, key=" + ".join(c["sum_of"]))
-                    v = sum(float(lookup(k)) for k in c["sum_of"])
-                else:
-                    v = lookup(c["key"])
-                if "expected_key" in c:
-                    # Two results of one run that a conservation law makes equal (e.g. the
-                    # fragment masses and the nodal mass).
-                    e = summary
-                    for part in c["expected_key"].split("/"):
-                        e = e[part]
-                    c = dict(c, expected=float(e), key=f"{c['key']} (against {c['expected_key']})")
-                if isinstance(c["expected"], str):
-                    ok = v == c["expected"]
-                    print(("ok    " if ok else "FAIL  ") + f"{case}: summary {c['key']} = {v}")
-                    if not ok:
-                        failures.append(f"{case}: summary {c['key']} = {v}, expected {c['expected']}")
-                else:
-                    check_value(failures, case, f"summary {c['key']}", float(v), c["expected"],
-                                c.get("abs", 0.0), c.get("rel", 0.0))
+                return v
+            if "sum_of" in c:
+                c = dict(c, key=" + ".join(c["sum_of"]))
+                v = sum(float(lookup(k)) for k in c["sum_of"])
+            else:
+                v = lookup(c["key"])
+            if "expected_key" in c:
+                # Two results of one run that a conservation law makes equal (e.g. the
+                # fragment masses and the nodal mass).
+                e = lookup(c["expected_key"])
+                c = dict(c, expected=float(e), key=f"{c['key']} (against {c['expected_key']})")
+            if isinstance(c["expected"], str):
+                ok = v == c["expected"]
+                print(("ok    " if ok else "FAIL  ") + f"{case}: summary {c['key']} = {v}")
+                if not ok:
+                    failures.append(f"{case}: summary {c['key']} = {v}, expected {c['expected']}")
+            else:
+                check_value(failures, case, f"summary {c['key']}", float(v), c["expected"],
+                            c.get("abs", 0.0), c.get("rel", 0.0))
     if os.path.exists(base + ".fragments"):
         check_fragments(base + ".fragments", outdir, case, failures)
 
@@ -427,6 +447,8 @@ def main():
     ap.add_argument("--set", action="append")
     ap.add_argument("--checks", action="append",
                     help="a further .checks file, applied after the case's own (a variant of a scene run with --set)")
+    ap.add_argument("--summary", action="append",
+                    help="a further .summary file of checks on summary.json, applied after the case's own")
     ap.add_argument("--instead-of-checks", action="store_true",
                     help="apply only the --checks files, not the case's own .checks (a variant whose "
                          "expectations differ, e.g. another impact speed)")
@@ -436,6 +458,9 @@ def main():
                     help="a file the run must write into its output directory (e.g. fragments.png)")
     ap.add_argument("--expect-no-file", action="append",
                     help="a file the run must not write into its output directory")
+    ap.add_argument("--post-check", action="append",
+                    help="a command (a Python script and its arguments) run after a successful run with the "
+                         "output directory as its first argument; a non-zero exit is a failure")
     ap.add_argument("--keep", action="store_true")
     args = ap.parse_args()
     case = os.path.basename(case_base(args))
@@ -476,6 +501,7 @@ def main():
                     raise SystemExit(f"{case}: run failed ({p.returncode}): {' '.join(cmd)}")
                 check_case(args, out, failures)
                 check_files(args, out, case, failures)
+                post_checks(args, out, case, failures)
     finally:
         if args.keep:
             print("kept", tmp)

@@ -1,8 +1,9 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 /**
  * @file field_output.h
- * @brief ParaView output of the fields (subsection `K - Output`): one PVTU per output time,
- *        collected in a PVD time series, written on the deformed mesh.
+ * @brief ParaView output of the fields (subsection `K - Output`), written on the deformed mesh:
+ *        one PVTU per output time collected in a PVD time series, or (`format = hdf5`, the
+ *        default above 16 ranks) one HDF5 file per output time indexed by an XDMF file.
  * @ingroup output
  */
 #pragma once
@@ -23,6 +24,12 @@ namespace shard::output
    * @brief Writes displacement and velocity (nodal), stress, von Mises stress, effective plastic
    * strain, failure flag, material (body) and MPI rank (per element) to `<dir>/solution_NNNN.pvtu`
    * and keeps `<dir>/solution.pvd` current (written to a temporary file, then renamed).
+   *
+   * With `format = hdf5` the same fields go to `<dir>/solution_NNNN.h5` (one file per output
+   * time, written by all ranks through parallel HDF5: nodes once per rank, cell fields per cell)
+   * and `<dir>/solution.xdmf` indexes them; the particles go to `particles_NNNN.h5` and
+   * `particles.xdmf`. `auto` chooses hdf5 from 17 ranks on (resolve_format()): there one .vtu
+   * per rank per output is thousands of files. Layout and cost: doc/manual/output.md.
    */
   class FieldOutput : public base::ParameterOwner
   {
@@ -72,6 +79,17 @@ namespace shard::output
     std::array<double, 3>
     debris_axis() const;
 
+    /// Field file format of this run: "vtu" or "hdf5" (`format`, with `auto` resolved).
+    std::string
+    format() const
+    {
+      return resolved_format_;
+    }
+
+    /// `auto` -> "hdf5" from 17 ranks on, "vtu" below; "vtu" and "hdf5" stay as they are.
+    static std::string
+    resolve_format(const std::string &format, unsigned int n_ranks);
+
     /// Wall-clock seconds between progress lines.
     double
     progress_interval() const
@@ -91,7 +109,8 @@ namespace shard::output
     /**
      * @brief Writes the fields at @p time: the mesh series solution.pvd and, with particles,
      * the point series particles.pvd (positions X + u, physical displacement u, coefficient
-     * velocity, stress, von Mises stress, plastic strain, failed, material, rank).
+     * velocity, stress, von Mises stress, plastic strain, failed, material, rank); with
+     * `format = hdf5` the series solution.xdmf and particles.xdmf instead.
      * Writes nothing with `K - Output/fields = false`.
      * @p d (physical displacement) and @p v must have ghost values set.
      * @note Collective.
@@ -106,7 +125,18 @@ namespace shard::output
       return directory_ + "/solution.pvd";
     }
 
-    /// The records (time, file) of solution.pvd and particles.pvd so far (checkpoint).
+    /// Path of the file a user opens in ParaView: solution.pvd, or solution.xdmf with hdf5.
+    std::string
+    series_path() const
+    {
+      return directory_ + (resolved_format_ == "hdf5" ? "/solution.xdmf" : "/solution.pvd");
+    }
+
+    /**
+     * The records (time, entry) of the mesh and particle series so far (checkpoint). An entry is
+     * the .pvtu file name of a VTU output or the XDMF grid (XML text) of an HDF5 output, so that
+     * a restart in the other format continues both series files.
+     */
     std::array<std::vector<std::pair<double, std::string>>, 2>
     records() const
     {
@@ -130,6 +160,8 @@ namespace shard::output
     bool         fields_            = true;
     unsigned int dust_particles_    = 8;
     std::string  debris_axis_       = "0, 0, -1";
+    std::string  format_            = "auto";
+    std::string  resolved_format_   = "vtu";
 
     const mesh::Discretization                *discretization_ = nullptr;
     const fe::HexForce                        *hex_            = nullptr;
@@ -138,5 +170,9 @@ namespace shard::output
 
     void
     write_particles(double time, const mesh::Vector &d, const mesh::Vector &v);
+
+    /// Rewrites solution.pvd/solution.xdmf (and the particle series) from the records. Rank 0.
+    void
+    write_series_files() const;
   };
 } // namespace shard::output

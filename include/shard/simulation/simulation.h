@@ -101,6 +101,13 @@ namespace shard
       return output_.directory();
     }
 
+    /// The field series a user opens in ParaView (solution.pvd, or solution.xdmf with hdf5).
+    std::string
+    field_series() const
+    {
+      return output_.series_path();
+    }
+
   private:
     MPI_Comm                     comm_;
     base::PrmSource              source_;
