@@ -79,13 +79,6 @@ namespace shard::output
     std::array<double, 3>
     debris_axis() const;
 
-    /// Field file format of this run: "vtu" or "hdf5" (`format`, with `auto` resolved).
-    std::string
-    format() const
-    {
-      return resolved_format_;
-    }
-
     /// `auto` -> "hdf5" from 17 ranks on, "vtu" below; "vtu" and "hdf5" stay as they are.
     static std::string
     resolve_format(const std::string &format, unsigned int n_ranks);
