@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/base/binary_archive.h>
 #include <shard/base/sections.h>
+#include <shard/base/traffic.h>
 #include <shard/contact/contact.h>
 #include <shard/contact/node_to_surface.h>
 #include <shard/contact/particle_pairs.h>
@@ -464,11 +465,11 @@ namespace shard::contact
       }
   }
 
-  void
+  double
   Contact::exchange(const mesh::Vector &d, const mesh::Vector &v)
   {
     if (interactions_.empty())
-      return;
+      return 0.;
     std::vector<double> mine(state_record * owned_local_dof_.size());
     for (std::size_t k = 0; k < owned_local_dof_.size(); ++k)
       {
@@ -481,6 +482,7 @@ namespace shard::contact
       }
     MPI_Allgatherv(mine.data(), static_cast<int>(mine.size()), MPI_DOUBLE, nodes_.state.data(), counts_.data(),
                    displs_.data(), MPI_DOUBLE, comm_);
+    return base::Traffic::to_all_others(sizeof(double) * mine.size(), comm_);
   }
 
   void

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/base/sections.h>
 #include <shard/base/tensor.h>
+#include <shard/base/traffic.h>
 #include <shard/particles/bond_failure.h>
 
 #include <deal.II/base/mpi.h>
@@ -30,11 +31,13 @@ namespace shard::particles
       return BondCriterion::none;
     }
 
-    /// Gathers the lists of all ranks into one sorted list without duplicates.
+    /// Gathers the lists of all ranks into one sorted list without duplicates; adds the bytes
+    /// this rank sent to @p bytes.
     template <typename T>
     std::vector<T>
-    gather_sorted(const MPI_Comm comm, const std::vector<T> &mine)
+    gather_sorted(const MPI_Comm comm, const std::vector<T> &mine, double &bytes)
     {
+      bytes += base::Traffic::to_all_others(sizeof(T) * mine.size(), comm);
       std::vector<T> all;
       for (const auto &part : Utilities::MPI::all_gather(comm, mine))
         all.insert(all.end(), part.begin(), part.end());
@@ -237,6 +240,7 @@ namespace shard::particles
         q.local_element(particles.local_dof(i) + 2) = opening_[i];
       }
     q.update_ghost_values();
+    bytes_sent_ += sizeof(double) * q.get_partitioner()->n_import_indices();
 
     // 2. The bonds of the owned rows. Without critical stretches a row can only lose a bond
     // if its value and the largest value among the coefficients (owned and ghost) together
@@ -307,10 +311,10 @@ namespace shard::particles
     unsigned long long n_bonds = 0, n_freed = 0;
     if (Utilities::MPI::sum(static_cast<unsigned long long>(bonds.size() + crushed.size()), comm) > 0)
       {
-        const auto all  = gather_sorted(comm, bonds);
+        const auto all  = gather_sorted(comm, bonds, bytes_sent_);
         const auto before = particles.broken_bonds().size();
         particles.break_bonds(all);
-        const auto all_crushed = gather_sorted(comm, crushed);
+        const auto all_crushed = gather_sorted(comm, crushed, bytes_sent_);
         if (!all_crushed.empty())
           {
             particles.break_bonds({}, all_crushed);
@@ -333,7 +337,7 @@ namespace shard::particles
               }
             if (Utilities::MPI::sum(static_cast<unsigned long long>(freed.size()), comm) == 0)
               break;
-            const auto all_freed = gather_sorted(comm, freed);
+            const auto all_freed = gather_sorted(comm, freed, bytes_sent_);
             particles.break_bonds({}, all_freed);
             n_freed += all_freed.size();
           }

@@ -74,9 +74,13 @@ namespace shard
   ExplicitStep::exchange()
   {
     const auto timer = c_.times.scope(Phase::exchange);
+    traffic_.count_step();
+    // d and v: 8 bytes per owned entry another rank imports, each.
+    const double ghost_bytes = 2. * sizeof(double) * s_.d.get_partitioner()->n_import_indices();
     s_.d.update_ghost_values();
     s_.v.update_ghost_values();
-    c_.contact.exchange(s_.d, s_.v);
+    traffic_.add(base::Traffic::ghost_values, ghost_bytes);
+    traffic_.add(base::Traffic::contact_nodes, c_.contact.exchange(s_.d, s_.v));
     // R1 filter steps smooth the particle coefficients and exchange once more. (The filter's
     // energy uses f, which still holds the force of the last step, f^{n-1}.)
     if (c_.spg.is_filter_step(s_.step))
@@ -84,6 +88,7 @@ namespace shard
         c_.energy.add_filter_work(c_.spg.filter(s_.mass, s_.f, s_.d, s_.v));
         s_.d.update_ghost_values();
         s_.v.update_ghost_values();
+        traffic_.add(base::Traffic::ghost_values, ghost_bytes);
       }
   }
 
@@ -149,6 +154,7 @@ namespace shard
     {
       const auto timer = c_.times.scope(Phase::accumulate);
       s_.f.compress(VectorOperation::add);
+      traffic_.add(base::Traffic::ghost_sums, sizeof(double) * s_.f.get_partitioner()->n_ghost_indices());
       s_.f += s_.f_ext;
       // Elements that meet a conversion criterion at the end of this step.
       if (c_.conversion.is_check_step(s_.step) && failure_.empty())
@@ -193,6 +199,8 @@ namespace shard
       return false;
     const auto timer            = c_.times.scope(Phase::topology);
     const auto [broken, freed] = c_.bonds.update(c_.discretization, c_.particles, c_.spg, bond_values_);
+    traffic_.add(base::Traffic::bonds, c_.bonds.bytes_sent() - bond_bytes_counted_);
+    bond_bytes_counted_ = c_.bonds.bytes_sent();
     if (broken + freed == 0)
       return false;
     // The kick uses the forces of the new stencils: df = f_new - f_old where the changed rows
@@ -203,6 +211,7 @@ namespace shard
     const auto [a_rows, g_rows] = c_.particles.take_rebuilt_rows();
     const double w              = c_.spg.refresh_forces(s_.d, df_, a_rows, g_rows);
     df_.compress(VectorOperation::add);
+    traffic_.add(base::Traffic::ghost_sums, sizeof(double) * df_.get_partitioner()->n_ghost_indices());
     s_.f += df_;
     c_.energy.book_bond_change(df_, s_.v, s_.dt, w);
     return true;

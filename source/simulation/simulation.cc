@@ -644,7 +644,11 @@ namespace shard
     const double n_hexes       = Utilities::MPI::sum(double(hex_.n_local_elements()), comm_);
     const auto   rank_times = Utilities::MPI::all_gather(comm_, std::vector<double>(times_.wall().begin(), times_.wall().end()));
     const auto   rank_cpu   = Utilities::MPI::all_gather(comm_, std::vector<double>(times_.cpu().begin(), times_.cpu().end()));
-    rusage usage{};
+    std::vector<double> traffic;
+    for (unsigned int x = 0; x < base::Traffic::n_exchanges; ++x)
+      traffic.push_back(explicit_step_.traffic().per_step(base::Traffic::Exchange(x)));
+    const auto rank_traffic = Utilities::MPI::all_gather(comm_, traffic);
+    rusage     usage{};
     getrusage(RUSAGE_SELF, &usage);
     const double peak_rss = Utilities::MPI::max(1024. * usage.ru_maxrss, comm_);
     if (Utilities::MPI::this_mpi_process(comm_) != 0)
@@ -703,6 +707,13 @@ namespace shard
     s.phase_cpu_time_by_rank   = rank_cpu;
     for (unsigned int p = 0; p < base::PhaseTimes::n_phases; ++p)
       s.phase_time.emplace_back(base::PhaseTimes::names()[p], max_time[p]);
+    for (unsigned int x = 0; x < base::Traffic::n_exchanges; ++x)
+      {
+        std::vector<double> per_rank;
+        for (const auto &r : rank_traffic)
+          per_rank.push_back(r[x]);
+        s.bytes_sent_per_step_by_rank.emplace_back(base::Traffic::names()[x], per_rank);
+      }
     const auto names = quantities_.names();
     for (unsigned int i = 0; i < names.size(); ++i)
       s.results.push_back({names[i], q_final_[i], q_min_[i], q_max_[i]});

@@ -94,9 +94,11 @@ namespace shard::contact
 
     /**
      * @brief The exchange: gathers the current positions X + d and the velocities @p v of
-     * every contact node from its owner. @note Collective.
+     * every contact node from its owner.
+     * @return the bytes this rank sent (its records, once to every other rank; base::Traffic)
+     * @note Collective.
      */
-    void
+    double
     exchange(const mesh::Vector &d, const mesh::Vector &v);
 
     /**

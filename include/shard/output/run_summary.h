@@ -93,6 +93,9 @@ namespace shard::output
     std::vector<std::vector<double>> phase_time_by_rank, phase_cpu_time_by_rank;
     /// `phase_time_s`: phase name and its time (s), in order.
     std::vector<std::pair<std::string, double>> phase_time;
+    /// `bytes_sent_per_step_by_rank`: per exchange point (base::Traffic), the mean bytes each
+    /// rank sent per step.
+    std::vector<std::pair<std::string, std::vector<double>>> bytes_sent_per_step_by_rank;
 
     /// One quantity of `results`: `name`, `name_min` and `name_max`.
     struct Result

@@ -133,6 +133,13 @@ namespace shard::particles
       return n_free_;
     }
 
+    /// Bytes this rank sent in update() so far (failure values and lists; base::Traffic).
+    double
+    bytes_sent() const
+    {
+      return bytes_sent_;
+    }
+
     /// Condition limit of rows rebuilt after bonds broke (`condition limit`). Unit: 1.
     double
     condition_limit() const
@@ -175,6 +182,7 @@ namespace shard::particles
     unsigned int                      minimum_bonds_  = 3;
     double                            condition_limit_ = 1e-2;
     unsigned long long                n_broken_ = 0, n_free_ = 0;
+    double                            bytes_sent_ = 0;
     /// Per owned particle: criterion, threshold, critical stretch, history slot (-1: none).
     std::vector<BondCriterion> criterion_;
     std::vector<double>        threshold_, stretch_, opening_, value_, volume_ratio_;

@@ -8,6 +8,7 @@
 
 #include <shard/base/keyed_records.h>
 #include <shard/base/phase_timer.h>
+#include <shard/base/traffic.h>
 #include <shard/bc/boundary_conditions.h>
 #include <shard/contact/contact.h>
 #include <shard/coupling/conversion.h>
@@ -91,8 +92,8 @@ namespace shard
    *
    * Simulation::run() calls, per step: step_size(), drift(), exchange(), internal_forces(),
    * loads(), accumulate(), topology(), kick(). The step holds references to the components it
-   * drives and to the StepState; it owns only the work counters and the failure text of the
-   * step.
+   * drives and to the StepState; it owns only the work counters (force evaluations and the
+   * bytes sent at each exchange point) and the failure text of the step.
    */
   class ExplicitStep
   {
@@ -177,6 +178,13 @@ namespace shard
       return particle_steps_;
     }
 
+    /// The bytes this rank sent at the exchange points since the start of this process.
+    const base::Traffic &
+    traffic() const
+    {
+      return traffic_;
+    }
+
     /// Restart: the counters of a checkpoint.
     void
     restore_counters(const double element_steps, const double particle_steps)
@@ -199,6 +207,9 @@ namespace shard
     StepState                                             &s_;
     std::function<void(const std::vector<unsigned int> &)> convert_;
     double                                                 element_steps_ = 0, particle_steps_ = 0;
+    base::Traffic                                          traffic_;
+    /// BondFailure::bytes_sent() already counted.
+    double bond_bytes_counted_ = 0;
     /// Failure texts of this step's force evaluation on this rank ("" if none).
     std::string failure_;
     /// Elements of this rank that meet a conversion criterion, and whether any rank has one.
