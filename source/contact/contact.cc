@@ -466,6 +466,16 @@ namespace shard::contact
   }
 
   double
+  Contact::memory_consumption() const
+  {
+    return sizeof(ContactNode) * nodes_.nodes.capacity() + sizeof(ContactSegment) * nodes_.segments.capacity() +
+           sizeof(double) * (nodes_.state.capacity() + force_.capacity() + force_old_.capacity() + x_old_.capacity() +
+                             reach_.capacity()) +
+           sizeof(Vec3) * x_build_.capacity() + sizeof(int) * (counts_.capacity() + displs_.capacity()) +
+           sizeof(unsigned int) * owned_local_dof_.capacity();
+  }
+
+  double
   Contact::exchange(const mesh::Vector &d, const mesh::Vector &v)
   {
     if (interactions_.empty())

@@ -108,6 +108,10 @@ namespace shard::output
       for (unsigned int p = 0; p < s.phase_time.size(); ++p)
         j << (p ? ", " : "") << text(s.phase_time[p].first) << ": " << number(s.phase_time[p].second);
       j << "},\n";
+      j << "  \"memory_by_rank_bytes\": {";
+      for (unsigned int p = 0; p < s.memory_by_rank.size(); ++p)
+        j << (p ? ", " : "") << text(s.memory_by_rank[p].first) << ": " << list(s.memory_by_rank[p].second);
+      j << "},\n";
       j << "  \"bytes_sent_per_step_by_rank\": {";
       for (unsigned int p = 0; p < s.bytes_sent_per_step_by_rank.size(); ++p)
         j << (p ? ", " : "") << text(s.bytes_sent_per_step_by_rank[p].first) << ": "

@@ -19,9 +19,13 @@
 #include <iomanip>
 #include <iostream>
 #include <sstream>
+#include <fstream>
 #include <unordered_map>
 
 #include <sys/resource.h>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 #include <ctime>
 
 namespace shard
@@ -181,6 +185,12 @@ namespace shard
     measure_partition();
     if (checkpoint_.restarting())
       restore_state();
+#ifdef __GLIBC__
+    // The set-up's temporaries (body meshes, gathered tables) are freed, but glibc keeps the
+    // pages resident below live blocks: give them back, so the resident set of the run is what
+    // it holds (summary.json memory_by_rank_bytes; the peak stays what the set-up reached).
+    malloc_trim(0);
+#endif
     times_.add(Phase::setup, std::chrono::duration<double>(Clock::now() - start).count(),
                base::PhaseTimes::thread_cpu_time() - cpu_start);
   }
@@ -635,22 +645,52 @@ namespace shard
   {
     // Memory: solver-owned particle data and the distributed vectors of the time loop (summed
     // over ranks), peak resident set size (largest over ranks; ru_maxrss is in KiB on Linux).
-    double memory[2] = {particles_.active() ? double(particles_.memory_consumption() + spg_.memory_consumption()) : 0.,
-                        0.};
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    // The parts of this rank's memory (the order of memory_names below).
+    // Resident set at the end, and its parts: anonymous (heap, the model) and file-backed (the
+    // shared libraries' pages: about 150 MB with Debian's deal.II, the same at any rank count).
+    double resident = 0, anonymous = 0, file = 0;
+    {
+      std::ifstream status("/proc/self/status");
+      std::string   key;
+      double        kb = 0;
+      while (status >> key)
+        if (key == "VmRSS:" || key == "RssAnon:" || key == "RssFile:")
+          {
+            status >> kb;
+            (key == "VmRSS:" ? resident : key == "RssAnon:" ? anonymous : file) = 1024. * kb;
+          }
+    }
+    double vector_bytes = 0;
     for (auto *vec : const_cast<StepState &>(state_).vectors())
-      memory[1] += vec->memory_consumption();
+      vector_bytes += vec->memory_consumption();
+    const std::vector<std::string> memory_names{"mesh", "dof handler", "particles", "elements", "contact",
+                                                "vectors", "resident at end", "anonymous at end",
+                                                "file-backed at end", "peak resident"};
+    const std::vector<double> memory_parts{
+      double(discretization_.triangulation().memory_consumption()),
+      double(discretization_.dof_handler().memory_consumption()),
+      particles_.active() ? double(particles_.memory_consumption() + spg_.memory_consumption()) : 0.,
+      double(hex_.memory_consumption()),
+      contact_.memory_consumption(),
+      vector_bytes,
+      resident,
+      anonymous,
+      file,
+      1024. * usage.ru_maxrss};
+    double memory[2] = {memory_parts[2], vector_bytes};
     Utilities::MPI::sum(ArrayView<const double>(memory, 2), comm_, ArrayView<double>(memory, 2));
-    const double element_bytes = Utilities::MPI::sum(double(hex_.memory_consumption()), comm_);
+    const double element_bytes = Utilities::MPI::sum(memory_parts[3], comm_);
     const double n_hexes       = Utilities::MPI::sum(double(hex_.n_local_elements()), comm_);
     const auto   rank_times = Utilities::MPI::all_gather(comm_, std::vector<double>(times_.wall().begin(), times_.wall().end()));
     const auto   rank_cpu   = Utilities::MPI::all_gather(comm_, std::vector<double>(times_.cpu().begin(), times_.cpu().end()));
     std::vector<double> traffic;
     for (unsigned int x = 0; x < base::Traffic::n_exchanges; ++x)
       traffic.push_back(explicit_step_.traffic().per_step(base::Traffic::Exchange(x)));
-    const auto rank_traffic = Utilities::MPI::all_gather(comm_, traffic);
-    rusage     usage{};
-    getrusage(RUSAGE_SELF, &usage);
-    const double peak_rss = Utilities::MPI::max(1024. * usage.ru_maxrss, comm_);
+    const auto   rank_traffic = Utilities::MPI::all_gather(comm_, traffic);
+    const auto   rank_memory  = Utilities::MPI::all_gather(comm_, memory_parts);
+    const double peak_rss     = Utilities::MPI::max(memory_parts.back(), comm_);
     if (Utilities::MPI::this_mpi_process(comm_) != 0)
       return;
     output::RunSummary s;
@@ -713,6 +753,13 @@ namespace shard
         for (const auto &r : rank_traffic)
           per_rank.push_back(r[x]);
         s.bytes_sent_per_step_by_rank.emplace_back(base::Traffic::names()[x], per_rank);
+      }
+    for (unsigned int m = 0; m < memory_names.size(); ++m)
+      {
+        std::vector<double> per_rank;
+        for (const auto &r : rank_memory)
+          per_rank.push_back(r[m]);
+        s.memory_by_rank.emplace_back(memory_names[m], per_rank);
       }
     const auto names = quantities_.names();
     for (unsigned int i = 0; i < names.size(); ++i)

@@ -150,6 +150,11 @@ namespace shard::contact
       return wall_force_;
     }
 
+    /// Bytes of the node and segment lists and the per-node arrays on this rank (the pair lists
+    /// of the interactions are not counted). Replicated today: O(contact nodes of all ranks).
+    double
+    memory_consumption() const;
+
     /// Candidate rebuilds so far.
     unsigned int
     n_rebuilds() const

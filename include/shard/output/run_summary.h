@@ -96,6 +96,9 @@ namespace shard::output
     /// `bytes_sent_per_step_by_rank`: per exchange point (base::Traffic), the mean bytes each
     /// rank sent per step.
     std::vector<std::pair<std::string, std::vector<double>>> bytes_sent_per_step_by_rank;
+    /// `memory_by_rank_bytes`: per part (mesh, DoF handler, particles, ..., resident set at the
+    /// end and its peak), the bytes on each rank: which parts grow with the model, not the rank.
+    std::vector<std::pair<std::string, std::vector<double>>> memory_by_rank;
 
     /// One quantity of `results`: `name`, `name_min` and `name_max`.
     struct Result

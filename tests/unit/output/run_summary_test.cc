@@ -60,6 +60,8 @@ namespace
     s.phase_time_by_rank     = {{0.5, 1}, {0.25, 2}};
     s.phase_cpu_time_by_rank = {{0.5, 1.5}, {0.75, 2}};
     s.phase_time             = {{"0 set-up", 0.5}, {"1 step size", 2}};
+    s.memory_by_rank         = {{"mesh", {1024, 2048}}, {"peak resident", {3e8, 2.5e8}}};
+    s.bytes_sent_per_step_by_rank = {{"3 ghost values", {96, 48}}, {"8 ghost sums", {0.5, 0}}};
     s.results                = {{"tip", 1e-3, -2e-3, 4e-3}, {"r", 7, 6, 8}};
     s.history_file           = "out/history.csv";
     s.field_file             = "out/fields.pvd";
@@ -114,6 +116,8 @@ namespace
     "  \"phase_time_by_rank_s\": [[0.5, 1], [0.25, 2]],\n"
     "  \"phase_cpu_time_by_rank_s\": [[0.5, 1.5], [0.75, 2]],\n"
     "  \"phase_time_s\": {\"0 set-up\": 0.5, \"1 step size\": 2},\n"
+    "  \"memory_by_rank_bytes\": {\"mesh\": [1024, 2048], \"peak resident\": [300000000, 250000000]},\n"
+    "  \"bytes_sent_per_step_by_rank\": {\"3 ghost values\": [96, 48], \"8 ghost sums\": [0.5, 0]},\n"
     "  \"results\": {\"tip\": 0.001, \"tip_min\": -0.002, \"tip_max\": 0.004, \"r\": 7, \"r_min\": 6, \"r_max\": 8},\n"
     "  \"files\": {\"history\": \"out/history.csv\", \"fields\": \"out/fields.pvd\", \"parameters\": "
     "\"out/parameters.prm\"}\n"
