@@ -16,10 +16,10 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
-#include <fstream>
 #include <unordered_map>
 
 #include <sys/resource.h>
@@ -647,7 +647,6 @@ namespace shard
     // over ranks), peak resident set size (largest over ranks; ru_maxrss is in KiB on Linux).
     rusage usage{};
     getrusage(RUSAGE_SELF, &usage);
-    // The parts of this rank's memory (the order of memory_names below).
     // Resident set at the end, and its parts: anonymous (heap, the model) and file-backed (the
     // shared libraries' pages: about 150 MB with Debian's deal.II, the same at any rank count).
     double resident = 0, anonymous = 0, file = 0;
@@ -665,6 +664,7 @@ namespace shard
     double vector_bytes = 0;
     for (auto *vec : const_cast<StepState &>(state_).vectors())
       vector_bytes += vec->memory_consumption();
+    // The parts of this rank's memory, in the order of memory_names.
     const std::vector<std::string> memory_names{"mesh", "dof handler", "particles", "elements", "contact",
                                                 "vectors", "resident at end", "anonymous at end",
                                                 "file-backed at end", "peak resident"};
@@ -747,20 +747,19 @@ namespace shard
     s.phase_cpu_time_by_rank   = rank_cpu;
     for (unsigned int p = 0; p < base::PhaseTimes::n_phases; ++p)
       s.phase_time.emplace_back(base::PhaseTimes::names()[p], max_time[p]);
-    for (unsigned int x = 0; x < base::Traffic::n_exchanges; ++x)
-      {
-        std::vector<double> per_rank;
-        for (const auto &r : rank_traffic)
-          per_rank.push_back(r[x]);
-        s.bytes_sent_per_step_by_rank.emplace_back(base::Traffic::names()[x], per_rank);
-      }
-    for (unsigned int m = 0; m < memory_names.size(); ++m)
-      {
-        std::vector<double> per_rank;
-        for (const auto &r : rank_memory)
-          per_rank.push_back(r[m]);
-        s.memory_by_rank.emplace_back(memory_names[m], per_rank);
-      }
+    // Per name, the value of every rank (@p by_rank: per rank, the values in the order of @p names).
+    const auto per_rank = [](const auto &names, const std::vector<std::vector<double>> &by_rank) {
+      std::vector<std::pair<std::string, std::vector<double>>> out;
+      for (unsigned int k = 0; k < names.size(); ++k)
+        {
+          out.emplace_back(names[k], std::vector<double>());
+          for (const auto &r : by_rank)
+            out.back().second.push_back(r[k]);
+        }
+      return out;
+    };
+    s.bytes_sent_per_step_by_rank = per_rank(base::Traffic::names(), rank_traffic);
+    s.memory_by_rank              = per_rank(memory_names, rank_memory);
     const auto names = quantities_.names();
     for (unsigned int i = 0; i < names.size(); ++i)
       s.results.push_back({names[i], q_final_[i], q_min_[i], q_max_[i]});
