@@ -645,8 +645,6 @@ namespace shard
   {
     // Memory: solver-owned particle data and the distributed vectors of the time loop (summed
     // over ranks), peak resident set size (largest over ranks; ru_maxrss is in KiB on Linux).
-    rusage usage{};
-    getrusage(RUSAGE_SELF, &usage);
     // Resident set at the end, and its parts: anonymous (heap, the model) and file-backed (the
     // shared libraries' pages: about 150 MB with Debian's deal.II, the same at any rank count).
     double resident = 0, anonymous = 0, file = 0;
@@ -661,6 +659,8 @@ namespace shard
             (key == "VmRSS:" ? resident : key == "RssAnon:" ? anonymous : file) = 1024. * kb;
           }
     }
+    rusage usage{}; // after the resident set, so that the peak is not below it
+    getrusage(RUSAGE_SELF, &usage);
     double vector_bytes = 0;
     for (auto *vec : const_cast<StepState &>(state_).vectors())
       vector_bytes += vec->memory_consumption();
