@@ -647,20 +647,23 @@ namespace shard
     // over ranks), peak resident set size (largest over ranks; ru_maxrss is in KiB on Linux).
     // Resident set at the end, and its parts: anonymous (heap, the model) and file-backed (the
     // shared libraries' pages: about 150 MB with Debian's deal.II, the same at any rank count).
-    double resident = 0, anonymous = 0, file = 0;
+    double resident = 0, anonymous = 0, file = 0, peak = 0;
     {
       std::ifstream status("/proc/self/status");
       std::string   key;
       double        kb = 0;
       while (status >> key)
-        if (key == "VmRSS:" || key == "RssAnon:" || key == "RssFile:")
+        if (key == "VmRSS:" || key == "RssAnon:" || key == "RssFile:" || key == "VmHWM:")
           {
             status >> kb;
-            (key == "VmRSS:" ? resident : key == "RssAnon:" ? anonymous : file) = 1024. * kb;
+            (key == "VmRSS:" ? resident : key == "RssAnon:" ? anonymous : key == "VmHWM:" ? peak : file) = 1024. * kb;
           }
     }
-    rusage usage{}; // after the resident set, so that the peak is not below it
+    // The peak: ru_maxrss, or VmHWM if larger (the kernel updates ru_maxrss's high-water mark
+    // lazily, so it can lag the present resident set by a few pages).
+    rusage usage{};
     getrusage(RUSAGE_SELF, &usage);
+    peak = std::max(peak, 1024. * usage.ru_maxrss);
     double vector_bytes = 0;
     for (auto *vec : const_cast<StepState &>(state_).vectors())
       vector_bytes += vec->memory_consumption();
@@ -678,7 +681,7 @@ namespace shard
       resident,
       anonymous,
       file,
-      1024. * usage.ru_maxrss};
+      peak};
     double memory[2] = {memory_parts[2], vector_bytes};
     Utilities::MPI::sum(ArrayView<const double>(memory, 2), comm_, ArrayView<double>(memory, 2));
     const double element_bytes = Utilities::MPI::sum(memory_parts[3], comm_);
