@@ -2,7 +2,7 @@
 # SPDX-License-Identifier: LGPL-2.1-or-later
 """Summarise contrib/weak_scaling runs (issue 28): step work, traffic and memory per rank.
 
-weak_scaling_report.py OUT CSV MD
+weak_scaling_report.py OUT CSV MD [PNG]
 OUT holds np<P>/ directories with summary.json and rss_<pid>.txt (peak RSS of each rank in KB,
 GNU time). Per rank count P:
 - step CPU per rank per step: phases 1-9 of phase_cpu_time_by_rank_s over the steps, the largest
@@ -11,7 +11,9 @@ GNU time). Per rank count P:
 - bytes sent per step: the largest rank, per exchange point and in total (bytes_sent_per_step_by_rank);
 - set-up CPU per rank (phase 0, largest) and summed over the ranks;
 - peak RSS per rank (largest).
-Writes CSV and the table between <!-- WEAK SCALING BEGIN --> and <!-- WEAK SCALING END --> of MD.
+Writes CSV and the table between <!-- WEAK SCALING BEGIN --> and <!-- WEAK SCALING END --> of MD;
+with PNG (and matplotlib) the figure: step CPU per step by phase, and bytes sent per rank and step
+by exchange point, against the rank count.
 """
 import glob
 import json
@@ -23,6 +25,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from doc_tables import commit_of, machine, replace_marked  # noqa: E402
 
 out, csv_path, md_path = sys.argv[1:4]
+png_path = sys.argv[4] if len(sys.argv) > 4 else None
 rows = []
 for d in sorted(glob.glob(os.path.join(out, "np*")), key=lambda p: int(os.path.basename(p)[2:]) if
                 os.path.basename(p)[2:].isdigit() else 0):
@@ -77,3 +80,43 @@ for r in rows:
     md.append(f"| {r['ranks']} | " + " | ".join(f"{r[f'phase {p} ms']:.1f}" for p in range(1, 10)) + " |")
 replace_marked(md_path, "WEAK SCALING", md)
 print("\n".join(md))
+
+if png_path:
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("weak_scaling_report.py: no matplotlib, no figure")
+        sys.exit(0)
+    ranks = [r["ranks"] for r in rows]
+    x = list(range(len(rows)))
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
+    bottom = [0.] * len(rows)
+    for k, name in enumerate(PHASES):
+        h = [r[f"phase {k + 1} ms"] for r in rows]
+        if max(h) < 0.5:
+            continue
+        ax1.bar(x, h, bottom=bottom, label=name, color=f"C{k}")
+        bottom = [b + v for b, v in zip(bottom, h)]
+    ax1.axhline(1.15 * rows[0]["step_cpu_max_ms"], color="k", ls="--", lw=1, label="1 rank + 15 % (issue 28)")
+    ax1.set_xticks(x, [str(n) for n in ranks])
+    ax1.set_xlabel("ranks (one unit of 25 200 hexahedra + 27 869 particles each)")
+    ax1.set_ylabel("step CPU per step, slowest rank (ms)")
+    ax1.set_ylim(0, 1.45 * max(bottom))
+    ax1.legend(fontsize=7, loc="upper left", ncol=3)
+    # One rank sends nothing: the curves start at 2 ranks.
+    many = [r for r in rows if r["ranks"] > 1]
+    for n in names:
+        ax2.plot([r["ranks"] for r in many], [r[n] / 1e3 for r in many], "o-", label=n[6:-4])
+    ax2.set_xscale("log", base=2)
+    ax2.set_yscale("log")
+    ax2.set_xticks([r["ranks"] for r in many], [str(r["ranks"]) for r in many])
+    ax2.set_xlabel("ranks")
+    ax2.set_ylabel("bytes sent per step, largest rank (kB)")
+    ax2.legend(fontsize=7)
+    ax2.grid(True, which="both", alpha=0.3)
+    fig.suptitle("Weak scaling (contrib/weak_scaling): what grows with the rank count", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(png_path, dpi=110)
+    print("wrote " + png_path)
