@@ -36,6 +36,51 @@ namespace shard
   {
     using Clock = std::chrono::steady_clock;
     using base::Phase;
+
+    /// This process's resident set (bytes): now, its anonymous (heap, the model) and
+    /// file-backed (shared-library pages: about 150 MB with Debian's deal.II, the same at any
+    /// rank count) parts, and its peak.
+    struct ProcessMemory
+    {
+      double resident = 0, anonymous = 0, file = 0, peak = 0;
+    };
+
+    ProcessMemory
+    process_memory()
+    {
+      ProcessMemory m;
+      std::ifstream status("/proc/self/status");
+      std::string   key;
+      double        kb = 0;
+      while (status >> key)
+        if (key == "VmRSS:" || key == "RssAnon:" || key == "RssFile:" || key == "VmHWM:")
+          {
+            status >> kb;
+            (key == "VmRSS:" ? m.resident : key == "RssAnon:" ? m.anonymous : key == "VmHWM:" ? m.peak : m.file) =
+              1024. * kb;
+          }
+      // ru_maxrss, or VmHWM if larger: the kernel updates ru_maxrss's high-water mark lazily, so
+      // it can lag the present resident set by a few pages.
+      rusage usage{};
+      getrusage(RUSAGE_SELF, &usage);
+      m.peak = std::max(m.peak, 1024. * usage.ru_maxrss);
+      return m;
+    }
+
+    /// Per name, the value of every rank; @p by_rank holds per rank the values in the order of @p names.
+    template <typename Names>
+    std::vector<std::pair<std::string, std::vector<double>>>
+    per_rank(const Names &names, const std::vector<std::vector<double>> &by_rank)
+    {
+      std::vector<std::pair<std::string, std::vector<double>>> out;
+      for (unsigned int k = 0; k < names.size(); ++k)
+        {
+          out.emplace_back(names[k], std::vector<double>());
+          for (const auto &r : by_rank)
+            out.back().second.push_back(r[k]);
+        }
+      return out;
+    }
   } // namespace
 
 
@@ -644,26 +689,8 @@ namespace shard
                             const base::PhaseTimes::Times &max_time) const
   {
     // Memory: solver-owned particle data and the distributed vectors of the time loop (summed
-    // over ranks), peak resident set size (largest over ranks; ru_maxrss is in KiB on Linux).
-    // Resident set at the end, and its parts: anonymous (heap, the model) and file-backed (the
-    // shared libraries' pages: about 150 MB with Debian's deal.II, the same at any rank count).
-    double resident = 0, anonymous = 0, file = 0, peak = 0;
-    {
-      std::ifstream status("/proc/self/status");
-      std::string   key;
-      double        kb = 0;
-      while (status >> key)
-        if (key == "VmRSS:" || key == "RssAnon:" || key == "RssFile:" || key == "VmHWM:")
-          {
-            status >> kb;
-            (key == "VmRSS:" ? resident : key == "RssAnon:" ? anonymous : key == "VmHWM:" ? peak : file) = 1024. * kb;
-          }
-    }
-    // The peak: ru_maxrss, or VmHWM if larger (the kernel updates ru_maxrss's high-water mark
-    // lazily, so it can lag the present resident set by a few pages).
-    rusage usage{};
-    getrusage(RUSAGE_SELF, &usage);
-    peak = std::max(peak, 1024. * usage.ru_maxrss);
+    // over ranks), peak resident set size (largest over ranks), and every rank's parts.
+    const ProcessMemory process = process_memory();
     double vector_bytes = 0;
     for (auto *vec : const_cast<StepState &>(state_).vectors())
       vector_bytes += vec->memory_consumption();
@@ -678,10 +705,10 @@ namespace shard
       double(hex_.memory_consumption()),
       contact_.memory_consumption(),
       vector_bytes,
-      resident,
-      anonymous,
-      file,
-      peak};
+      process.resident,
+      process.anonymous,
+      process.file,
+      process.peak};
     double memory[2] = {memory_parts[2], vector_bytes};
     Utilities::MPI::sum(ArrayView<const double>(memory, 2), comm_, ArrayView<double>(memory, 2));
     const double element_bytes = Utilities::MPI::sum(memory_parts[3], comm_);
@@ -750,17 +777,6 @@ namespace shard
     s.phase_cpu_time_by_rank   = rank_cpu;
     for (unsigned int p = 0; p < base::PhaseTimes::n_phases; ++p)
       s.phase_time.emplace_back(base::PhaseTimes::names()[p], max_time[p]);
-    // Per name, the value of every rank (@p by_rank: per rank, the values in the order of @p names).
-    const auto per_rank = [](const auto &names, const std::vector<std::vector<double>> &by_rank) {
-      std::vector<std::pair<std::string, std::vector<double>>> out;
-      for (unsigned int k = 0; k < names.size(); ++k)
-        {
-          out.emplace_back(names[k], std::vector<double>());
-          for (const auto &r : by_rank)
-            out.back().second.push_back(r[k]);
-        }
-      return out;
-    };
     s.bytes_sent_per_step_by_rank = per_rank(base::Traffic::names(), rank_traffic);
     s.memory_by_rank              = per_rank(memory_names, rank_memory);
     const auto names = quantities_.names();
