@@ -3,14 +3,14 @@
 """Summarise contrib/weak_scaling runs (issue 28): step work, traffic and memory per rank.
 
 weak_scaling_report.py OUT CSV MD [PNG]
-OUT holds np<P>/ directories with summary.json and rss_<pid>.txt (peak RSS of each rank in KB,
-GNU time). Per rank count P:
+OUT holds np<P>/ directories with summary.json (and, from older runs, rss_<pid>.txt: the peak RSS
+of each rank in KB from GNU time). Per rank count P:
 - step CPU per rank per step: phases 1-9 of phase_cpu_time_by_rank_s over the steps, the largest
   and the median rank (CPU time: what an oversubscribed machine can measure);
 - growth: the largest rank's step CPU over the 1-rank figure (issue 28 asks <= 1.15 at 8 ranks);
 - bytes sent per step: the largest rank, per exchange point and in total (bytes_sent_per_step_by_rank);
 - set-up CPU per rank (phase 0, largest) and summed over the ranks;
-- peak RSS per rank (largest).
+- peak RSS per rank (largest; memory_by_rank_bytes "peak resident").
 Writes CSV and the table between <!-- WEAK SCALING BEGIN --> and <!-- WEAK SCALING END --> of MD;
 with PNG (and matplotlib) the figure: step CPU per step by phase, and bytes sent per rank and step
 by exchange point, against the rank count.
@@ -37,7 +37,8 @@ for d in sorted(glob.glob(os.path.join(out, "np*")), key=lambda p: int(os.path.b
     step_cpu = [sum(r[1:10]) / steps for r in cpu]
     traffic = s["bytes_sent_per_step_by_rank"]
     total = [sum(v[r] for v in traffic.values()) for r in range(len(cpu))]
-    rss = []
+    # Peak RSS per rank (MB): summary.json, or rss_<pid>.txt files of GNU time (KB) if present.
+    rss = [b / 2**20 for b in s.get("memory_by_rank_bytes", {}).get("peak resident", [])]
     for f in glob.glob(os.path.join(d, "rss_*.txt")):
         lines = [x for x in open(f).read().split() if x.isdigit()]
         if lines:
