@@ -222,6 +222,7 @@ namespace shard::particles
   BondFailure::update(const mesh::Discretization &discretization, ParticleSet &particles, const SpgForce &spg,
                       mesh::Vector &q)
   {
+    bytes_sent_ = 0;
     if (!active_)
       return {0, 0};
     const MPI_Comm comm = discretization.communicator();

@@ -199,8 +199,7 @@ namespace shard
       return false;
     const auto timer            = c_.times.scope(Phase::topology);
     const auto [broken, freed] = c_.bonds.update(c_.discretization, c_.particles, c_.spg, bond_values_);
-    traffic_.add(base::Traffic::bonds, c_.bonds.bytes_sent() - bond_bytes_counted_);
-    bond_bytes_counted_ = c_.bonds.bytes_sent();
+    traffic_.add(base::Traffic::bonds, c_.bonds.bytes_sent());
     if (broken + freed == 0)
       return false;
     // The kick uses the forces of the new stencils: df = f_new - f_old where the changed rows

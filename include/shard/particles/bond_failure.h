@@ -133,7 +133,7 @@ namespace shard::particles
       return n_free_;
     }
 
-    /// Bytes this rank sent in update() so far (failure values and lists; base::Traffic).
+    /// Bytes this rank sent in the last update() (failure values and lists; base::Traffic).
     double
     bytes_sent() const
     {

@@ -208,8 +208,6 @@ namespace shard
     std::function<void(const std::vector<unsigned int> &)> convert_;
     double                                                 element_steps_ = 0, particle_steps_ = 0;
     base::Traffic                                          traffic_;
-    /// BondFailure::bytes_sent() already counted.
-    double bond_bytes_counted_ = 0;
     /// Failure texts of this step's force evaluation on this rank ("" if none).
     std::string failure_;
     /// Elements of this rank that meet a conversion criterion, and whether any rank has one.
