@@ -216,6 +216,7 @@ namespace shard::contact
     interactions_.clear();
     std::vector<bool> involved(discretization.bodies().size(), false);
     const bool        speaks = Utilities::MPI::this_mpi_process(comm_) == 0;
+    const MPI_Comm    comm   = comm_;
     for (const auto &s : resolve(discretization, materials, particles, source))
       {
         for (const unsigned int b : s.bodies)
@@ -224,6 +225,7 @@ namespace shard::contact
           involved[s.target_body] = true;
         interactions_.push_back(make_interaction(s));
         interactions_.back()->set_print_notices(speaks);
+        interactions_.back()->set_global_max([comm](const double x) { return Utilities::MPI::max(x, comm); });
         if (before.size() > interactions_.size() - 1)
           interactions_.back()->keep_notices(*before[interactions_.size() - 1]);
       }
@@ -231,22 +233,29 @@ namespace shard::contact
       return;
 
     gather(discretization, materials, particles, converted_cells, mass, involved);
-    force_.assign(3 * nodes_.size(), 0.);
-    force_old_.assign(3 * nodes_.size(), 0.);
+    nodes_ = ContactNodes();
+    own_index_.clear();
+    send_ranks_.clear(), recv_ranks_.clear(), send_lists_.clear(), recv_lists_.clear();
+    force_.clear();
+    own_force_.assign(3 * own_.size(), 0.);
+    own_force_old_.assign(3 * own_.size(), 0.);
+    own_state_.assign(state_record * own_.size(), 0.);
     x_old_.clear();
     for (auto &in : interactions_)
       in->reset(nodes_);
-    built_ = false;
     bonds_.reset(nodes_);
+    built_         = false;
+    halo_stale_    = true;
+    build_pending_ = false;
+    stable_stale_  = true;
+    pending_       = Pending();
 
-    // Skin and the critical step of the stiffest spring each node can meet.
+    // Skin: the smallest contact spacing of any rank.
     double smallest = 1e300;
-    for (const auto &n : nodes_.nodes)
+    for (const auto &n : own_)
       smallest = std::min(smallest, n.spacing);
+    smallest   = Utilities::MPI::min(smallest, comm_);
     skin_used_ = skin_ > 0 ? skin_ : smallest;
-    stable_dt_ = 1e300;
-    for (const auto &in : interactions_)
-      stable_dt_ = std::min(stable_dt_, in->stable_dt(nodes_));
     restore(carried);
   }
 
@@ -255,16 +264,14 @@ namespace shard::contact
                   const particles::ParticleSet &particles, const std::vector<bool> &converted_cells,
                   const mesh::Vector &mass, const std::vector<bool> &involved)
   {
-    // This rank's contact nodes and segments.
     const auto &bodies = discretization.bodies();
     const auto &pt     = *discretization.partitioner();
     const auto &X      = discretization.reference_positions();
+    const unsigned int rank = Utilities::MPI::this_mpi_process(comm_);
     std::map<unsigned long long, std::array<double, node_record>> mine; // by global DOF
     const auto bulk_of = [&](const unsigned int b) { return materials.get(bodies[b].material).elastic_moduli()[0]; };
     const auto add_node = [&](const types::global_dof_index g, const unsigned int b, const double h,
                               const bool is_particle, const Vec3 &support) {
-      if (!pt.in_local_range(g))
-        return;
       const unsigned int j  = pt.global_to_local(g);
       auto               it = mine.find(g);
       if (it == mine.end())
@@ -293,7 +300,22 @@ namespace shard::contact
           add_node(pt.local_to_global(particles.local_dof(i)), particles.body(i), std::min({h[0], h[1], h[2]}), true,
                    support);
         }
-    std::vector<double> segment_table; // 4 node DOFs, stiffness, body, spacing
+    // The owner of a ghost DOF, from the partitioner's ghost ranges.
+    std::vector<std::pair<unsigned int, unsigned int>> ghost_ranges; // (first ghost number past the range, rank)
+    {
+      unsigned int end = 0;
+      for (const auto &[r, count] : pt.ghost_targets())
+        ghost_ranges.emplace_back(end += count, r);
+    }
+    const auto owner_of = [&](const unsigned int local) {
+      const unsigned int t  = local - pt.locally_owned_size();
+      const auto         it = std::upper_bound(ghost_ranges.begin(), ghost_ranges.end(), std::make_pair(t, ~0u));
+      return it->second;
+    };
+    // The faces: this rank's segments; a face node owned elsewhere is told to its owner, which
+    // makes it a contact node (a node may be owned by a rank that owns no face with it).
+    own_segments_.clear();
+    std::map<unsigned int, std::vector<double>> notices; // per rank: DOF, body, spacing
     for (const auto &cell : discretization.dof_handler().active_cell_iterators())
       {
         if (!cell->is_locally_owned() || converted_cells[cell->active_cell_index()] ||
@@ -317,88 +339,410 @@ namespace shard::contact
             if (n * (face->center() - centre) < 0)
               std::swap(order[1], order[3]);
             const double area = face->measure();
-            for (const unsigned int v : order)
+            OwnSegment   seg;
+            for (unsigned int v = 0; v < 4; ++v)
               {
-                const auto g = face->vertex_dof_index(v, 0);
-                segment_table.push_back(double(g));
-                add_node(g, b, h, false, Vec3{{0, 0, 0}});
+                const auto g = face->vertex_dof_index(order[v], 0);
+                seg.dof[v]   = g;
+                seg.local[v] = pt.global_to_local(g);
+                for (unsigned int c = 0; c < 3; ++c)
+                  seg.X[v][c] = face->vertex(order[v])[c];
+                if (pt.in_local_range(g))
+                  add_node(g, b, h, false, Vec3{{0, 0, 0}});
+                else
+                  {
+                    auto &to = notices[owner_of(seg.local[v])];
+                    to.insert(to.end(), {double(g), double(b), h});
+                  }
               }
-            segment_table.push_back(area * area / volume * bulk_of(b));
-            segment_table.push_back(b);
-            segment_table.push_back(h);
+            seg.stiffness = area * area / volume * bulk_of(b);
+            seg.body      = b;
+            own_segments_.push_back(seg);
           }
       }
     // Particle bodies' nodes on intact cells are FE nodes; those of converted cells were added
     // as particles above.
-
-    // Segments first: a face node may be owned by a rank that owns no face with it; the owner
-    // adds it from the gathered segments. Then the nodes, in rank order (each rank's sorted by
-    // DOF).
-    const auto all_segments = Utilities::MPI::all_gather(comm_, segment_table);
-    for (const auto &part : all_segments)
-      for (std::size_t p = 0; p < part.size(); p += segment_record)
-        for (unsigned int v = 0; v < 4; ++v)
-          add_node(static_cast<types::global_dof_index>(part[p + v]), static_cast<unsigned int>(part[p + 5]),
-                   part[p + 6], false, Vec3{{0, 0, 0}});
-    std::vector<double> flat;
-    for (const auto &[g, r] : mine)
-      flat.insert(flat.end(), r.begin(), r.end());
-    const auto         all_nodes = Utilities::MPI::all_gather(comm_, flat);
-    const unsigned int rank      = Utilities::MPI::this_mpi_process(comm_);
-    nodes_ = ContactNodes();
-    counts_.assign(all_nodes.size(), 0);
-    displs_.assign(all_nodes.size(), 0);
-    std::map<unsigned long long, unsigned int> index_of;
-    for (unsigned int r = 0; r < all_nodes.size(); ++r)
-      {
-        if (r == rank)
-          owned_begin_ = nodes_.size();
-        displs_[r] = state_record * nodes_.size();
-        for (std::size_t p = 0; p < all_nodes[r].size(); p += node_record)
-          {
-            const double *a = &all_nodes[r][p];
-            ContactNode   n;
-            n.dof           = static_cast<unsigned long long>(a[0]);
-            n.X             = Vec3{{a[1], a[2], a[3]}};
-            n.mass          = a[4];
-            n.radius        = a[5];
-            n.bulk          = a[6];
-            n.spacing       = a[7];
-            n.body          = static_cast<unsigned int>(a[8]);
-            n.particle      = a[9] > 0;
-            n.support       = Vec3{{a[10], a[11], a[12]}};
-            index_of[n.dof] = nodes_.size();
-            nodes_.nodes.push_back(n);
-          }
-        counts_[r] = state_record * nodes_.size() - displs_[r];
-      }
+    if (Utilities::MPI::n_mpi_processes(comm_) > 1)
+      for (const auto &[from, list] : Utilities::MPI::some_to_some(comm_, notices))
+        for (std::size_t p = 0; p < list.size(); p += 3)
+          add_node(static_cast<types::global_dof_index>(list[p]), static_cast<unsigned int>(list[p + 1]), list[p + 2],
+                   false, Vec3{{0, 0, 0}});
+    (void)rank;
+    own_.clear();
     owned_local_dof_.clear();
     for (const auto &[g, r] : mine)
-      owned_local_dof_.push_back(pt.global_to_local(g));
-    for (const auto &part : all_segments)
-      for (std::size_t p = 0; p < part.size(); p += segment_record)
+      {
+        ContactNode n;
+        n.dof      = static_cast<unsigned long long>(r[0]);
+        n.X        = Vec3{{r[1], r[2], r[3]}};
+        n.mass     = r[4];
+        n.radius   = r[5];
+        n.bulk     = r[6];
+        n.spacing  = r[7];
+        n.body     = static_cast<unsigned int>(r[8]);
+        n.particle = r[9] > 0;
+        n.support  = Vec3{{r[10], r[11], r[12]}};
+        n.owned    = true;
+        own_.push_back(n);
+        owned_local_dof_.push_back(pt.global_to_local(g));
+      }
+  }
+
+  namespace
+  {
+    /// The static record of a node (node_record doubles).
+    void
+    pack_node(const ContactNode &n, std::vector<double> &out)
+    {
+      out.insert(out.end(), {double(n.dof), n.X[0], n.X[1], n.X[2], n.mass, n.radius, n.bulk, n.spacing,
+                             double(n.body), n.particle ? 1. : 0., n.support[0], n.support[1], n.support[2]});
+    }
+
+    ContactNode
+    unpack_node(const double *a)
+    {
+      ContactNode n;
+      n.dof      = static_cast<unsigned long long>(a[0]);
+      n.X        = Vec3{{a[1], a[2], a[3]}};
+      n.mass     = a[4];
+      n.radius   = a[5];
+      n.bulk     = a[6];
+      n.spacing  = a[7];
+      n.body     = static_cast<unsigned int>(a[8]);
+      n.particle = a[9] > 0;
+      n.support  = Vec3{{a[10], a[11], a[12]}};
+      n.owned    = false;
+      return n;
+    }
+
+    /// Distance from @p x to the box [lo, hi] (0 inside).
+    double
+    box_distance(const Vec3 &x, const double *lo, const double *hi)
+    {
+      double d2 = 0;
+      for (unsigned int c = 0; c < 3; ++c)
         {
-          ContactSegment s;
-          for (unsigned int v = 0; v < 4; ++v)
-            s.node[v] = index_of.at(static_cast<unsigned long long>(part[p + v]));
-          s.stiffness = part[p + 4];
-          s.body      = static_cast<unsigned int>(part[p + 5]);
-          nodes_.segments.push_back(s);
+          const double e = std::max({lo[c] - x[c], 0., x[c] - hi[c]});
+          d2 += e * e;
         }
-    nodes_.state.assign(state_record * nodes_.size(), 0.);
+      return std::sqrt(d2);
+    }
+
+    /// Distance between the boxes [alo, ahi] and [blo, bhi] (0 where they overlap).
+    double
+    box_box_distance(const Vec3 &alo, const Vec3 &ahi, const double *blo, const double *bhi)
+    {
+      double d2 = 0;
+      for (unsigned int c = 0; c < 3; ++c)
+        {
+          const double e = std::max({blo[c] - ahi[c], 0., alo[c] - bhi[c]});
+          d2 += e * e;
+        }
+      return std::sqrt(d2);
+    }
+  } // namespace
+
+  void
+  Contact::copy_own_states()
+  {
+    for (std::size_t k = 0; k < own_index_.size(); ++k)
+      std::copy_n(&own_state_[state_record * k], state_record, &nodes_.state[state_record * own_index_[k]]);
+  }
+
+  double
+  Contact::build_halo(const double dt)
+  {
+    const unsigned int rank = Utilities::MPI::this_mpi_process(comm_);
+    const unsigned int P    = Utilities::MPI::n_mpi_processes(comm_);
+    const std::size_t  n_own = own_.size();
+    // The margins: a node of another rank is in the halo when it can meet one of this rank's
+    // nodes before the next build. Reach (the fastest node of any rank, as build_candidates()
+    // computes it), contact radius, face depth and the deepest followed penetration, and the
+    // size of a segment at its present positions.
+    const double base = 0.5 * skin_used_;
+    std::array<double, 5> m{{base, 0., 0., 0., 0.}}; // reach, radius, spacing, depth, segment size
+    for (std::size_t k = 0; k < n_own; ++k)
+      {
+        const double *v = &own_state_[state_record * k + 3];
+        m[0]            = std::max(m[0], reach_steps * dt * std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]));
+        m[1]            = std::max(m[1], own_[k].radius);
+        m[2]            = std::max(m[2], own_[k].spacing);
+      }
+    for (const auto &in : interactions_)
+      m[3] = std::max(m[3], in->search_depth());
+    // Current positions of the own segments' nodes (d has its ghost values).
+    std::vector<std::array<Vec3, 2>> segment_box(own_segments_.size());
+    for (std::size_t s = 0; s < own_segments_.size(); ++s)
+      {
+        const auto &seg = own_segments_[s];
+        Vec3        lo{{1e300, 1e300, 1e300}}, hi{{-1e300, -1e300, -1e300}};
+        for (unsigned int v = 0; v < 4; ++v)
+          for (unsigned int c = 0; c < 3; ++c)
+            {
+              const double x = seg.X[v][c] + d_->local_element(seg.local[v] + c);
+              lo[c]          = std::min(lo[c], x);
+              hi[c]          = std::max(hi[c], x);
+            }
+        segment_box[s] = {{lo, hi}};
+        m[4]           = std::max(m[4], std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                                                  (hi[2] - lo[2]) * (hi[2] - lo[2])));
+      }
+    if (P > 1)
+      Utilities::MPI::max(ArrayView<const double>(m.data(), m.size()), comm_, ArrayView<double>(m.data(), m.size()));
+    // Node to surface: a slave meets a segment within the face depth + penetration + both
+    // reaches of the segment's box; particles: within both radii and both reaches. A segment's
+    // nodes lie within its size of its box. 1 % and an absolute floor against round-off.
+    const double reach          = m[0];
+    const double segment_margin = 1.01 * (m[2] + m[3] + 2. * reach) + 1e-12;
+    const double node_margin    = std::max(segment_margin + 1.01 * m[4], 1.01 * (2. * m[1] + 2. * reach) + 1e-12);
+
+    // Bounding box of this rank's nodes (empty: lo > hi, far from everything).
+    std::array<double, 6> box{{1e300, 1e300, 1e300, -1e300, -1e300, -1e300}};
+    for (std::size_t k = 0; k < n_own; ++k)
+      for (unsigned int c = 0; c < 3; ++c)
+        {
+          box[c]     = std::min(box[c], own_state_[state_record * k + c]);
+          box[3 + c] = std::max(box[3 + c], own_state_[state_record * k + c]);
+        }
+    const auto boxes = P > 1 ? Utilities::MPI::all_gather(comm_, box) : std::vector<std::array<double, 6>>{box};
+
+    // What goes to each rank (this one included): own nodes near its box (record and state),
+    // own segments near its box (node DOFs, stiffness, body).
+    std::map<unsigned int, std::vector<double>> out;
+    std::vector<std::vector<unsigned int>>      sent(P);
+    std::vector<std::vector<double>>            segments_to(P);
+    for (unsigned int r = 0; r < P; ++r)
+      {
+        const double *lo = &boxes[r][0], *hi = &boxes[r][3];
+        if (lo[0] > hi[0])
+          continue;
+        for (std::size_t k = 0; k < n_own; ++k)
+          if (r == rank ||
+              box_distance(Vec3{{own_state_[state_record * k], own_state_[state_record * k + 1],
+                                 own_state_[state_record * k + 2]}},
+                           lo, hi) <= node_margin)
+            sent[r].push_back(static_cast<unsigned int>(k));
+        for (std::size_t s = 0; s < own_segments_.size(); ++s)
+          if (box_box_distance(segment_box[s][0], segment_box[s][1], lo, hi) <= segment_margin)
+            {
+              const auto &seg = own_segments_[s];
+              segments_to[r].insert(segments_to[r].end(), {double(seg.dof[0]), double(seg.dof[1]), double(seg.dof[2]),
+                                                           double(seg.dof[3]), seg.stiffness, double(seg.body)});
+            }
+      }
+    double bytes = 0;
+    for (unsigned int r = 0; r < P; ++r)
+      {
+        if (r == rank || (sent[r].empty() && segments_to[r].empty()))
+          continue;
+        auto &o = out[r];
+        o.push_back(double(sent[r].size()));
+        for (const unsigned int k : sent[r])
+          {
+            pack_node(own_[k], o);
+            o.insert(o.end(), &own_state_[state_record * k], &own_state_[state_record * k] + state_record);
+          }
+        o.insert(o.end(), segments_to[r].begin(), segments_to[r].end());
+        bytes += sizeof(double) * o.size();
+      }
+    const auto received = P > 1 ? Utilities::MPI::some_to_some(comm_, out) : std::map<unsigned int, std::vector<double>>();
+    // Boxes: 48 B to every other rank.
+    bytes += base::Traffic::to_all_others(sizeof(box), comm_);
+
+    // The new node list: own and received nodes, sorted by DOF; segments sorted by their DOFs.
+    struct Entry
+    {
+      ContactNode  node;
+      const double *state;
+      unsigned int from, position; // rank and place in its message (own: rank, k)
+    };
+    std::vector<Entry>                              entries;
+    std::vector<std::array<double, segment_record>> segment_records;
+    for (std::size_t k = 0; k < n_own; ++k)
+      entries.push_back({own_[k], &own_state_[state_record * k], rank, static_cast<unsigned int>(k)});
+    const auto take_segments = [&](const std::vector<double> &list, std::size_t p) {
+      for (; p + 6 <= list.size(); p += 6)
+        {
+          std::array<double, segment_record> r{};
+          std::copy_n(&list[p], 6, r.begin());
+          segment_records.push_back(r);
+        }
+    };
+    take_segments(segments_to[rank], 0);
+    for (const auto &[from, list] : received)
+      {
+        const auto count = static_cast<std::size_t>(list[0]);
+        std::size_t p     = 1;
+        for (std::size_t t = 0; t < count; ++t, p += node_record + state_record)
+          entries.push_back({unpack_node(&list[p]), &list[p + node_record], from, static_cast<unsigned int>(t)});
+        take_segments(list, p);
+      }
+    std::sort(entries.begin(), entries.end(), [](const Entry &a, const Entry &b) { return a.node.dof < b.node.dof; });
+
+    ContactNodes next;
+    next.nodes.reserve(entries.size());
+    next.state.resize(state_record * entries.size());
+    std::vector<unsigned int> own_index(n_own);
+    std::map<unsigned int, std::vector<std::pair<unsigned int, unsigned int>>> from_rank; // rank: (position, index)
+    std::unordered_map<unsigned long long, unsigned int>                       index_of;
+    for (unsigned int i = 0; i < entries.size(); ++i)
+      {
+        const auto &e = entries[i];
+        next.nodes.push_back(e.node);
+        std::copy_n(e.state, state_record, &next.state[state_record * i]);
+        index_of.emplace(e.node.dof, i);
+        if (e.node.owned)
+          own_index[e.position] = i;
+        else
+          from_rank[e.from].emplace_back(e.position, i);
+      }
+    // Segments (a segment has one owner, the owner of its cell): sorted by their node DOFs.
+    for (const auto &r : segment_records)
+      {
+        ContactSegment g;
+        for (unsigned int v = 0; v < 4; ++v)
+          {
+            const auto it = index_of.find(static_cast<unsigned long long>(r[v]));
+            if (it == index_of.end())
+              throw std::logic_error("contact halo: a node of a segment did not arrive (margin)");
+            g.node[v] = it->second;
+          }
+        g.stiffness = r[4];
+        g.body      = static_cast<unsigned int>(r[5]);
+        next.segments.push_back(g);
+      }
+    {
+      std::vector<std::pair<std::array<unsigned long long, 4>, unsigned int>> order;
+      for (unsigned int g = 0; g < next.segments.size(); ++g)
+        order.emplace_back(next.segment_dofs(g), g);
+      std::sort(order.begin(), order.end());
+      std::vector<ContactSegment> sorted;
+      for (const auto &o : order)
+        sorted.push_back(next.segments[o.second]);
+      next.segments.swap(sorted);
+    }
+
+    // Exchange lists of the following steps.
+    send_ranks_.clear(), send_lists_.clear(), recv_ranks_.clear(), recv_lists_.clear();
+    for (unsigned int r = 0; r < P; ++r)
+      if (r != rank && !sent[r].empty())
+        {
+          send_ranks_.push_back(r);
+          send_lists_.push_back(sent[r]);
+        }
+    for (auto &[r, list] : from_rank)
+      {
+        std::sort(list.begin(), list.end());
+        recv_ranks_.push_back(r);
+        recv_lists_.emplace_back();
+        for (const auto &pi : list)
+          recv_lists_.back().push_back(pi.second);
+      }
+
+    // The interactions' per-node state follows the nodes (only when the list changed: on one
+    // rank it never does).
+    bool same = next.nodes.size() == nodes_.nodes.size() && next.segments.size() == nodes_.segments.size();
+    for (std::size_t i = 0; same && i < next.nodes.size(); ++i)
+      same = next.nodes[i].dof == nodes_.nodes[i].dof;
+    for (std::size_t g = 0; same && g < next.segments.size(); ++g)
+      same = next.segments[g].node == nodes_.segments[g].node;
+    if (same)
+      {
+        nodes_.state.swap(next.state);
+      }
+    else
+      {
+        std::vector<std::string> states;
+        NodeNaming               naming;
+        naming.name = [&](const unsigned int i) { return nodes_.nodes[i].dof; };
+        for (const auto &in : interactions_)
+          {
+            base::BinaryWriter w;
+            in->write_state(w, nodes_, naming);
+            states.push_back(w.str());
+          }
+        std::vector<int> where(nodes_.size(), -1);
+        for (std::size_t i = 0; i < nodes_.size(); ++i)
+          if (nodes_.nodes[i].owned)
+            where[i] = static_cast<int>(index_of.at(nodes_.nodes[i].dof));
+        nodes_ = std::move(next);
+        naming.index = [&](const unsigned long long dof) {
+          const auto it = index_of.find(dof);
+          return it == index_of.end() ? -1 : static_cast<int>(it->second);
+        };
+        for (std::size_t s = 0; s < interactions_.size(); ++s)
+          {
+            interactions_[s]->reset(nodes_);
+            base::BinaryReader in(states[s]);
+            interactions_[s]->read_state(in, nodes_, where, naming);
+          }
+        bonds_.reset(nodes_);
+        bonds_.sync(particles_->broken_bonds(), particles_->free_particles());
+        read_pending();
+      }
+    own_index_ = std::move(own_index);
+    force_.assign(3 * nodes_.size(), 0.);
+    halo_stale_ = false;
+    if (stable_stale_)
+      {
+        stable_dt_ = 1e300;
+        for (const auto &in : interactions_)
+          stable_dt_ = std::min(stable_dt_, in->stable_dt(nodes_));
+        stable_dt_    = Utilities::MPI::min(stable_dt_, comm_);
+        stable_stale_ = false;
+      }
+    return bytes;
+  }
+
+  void
+  Contact::read_pending()
+  {
+    if (pending_.dofs.empty())
+      return;
+    std::unordered_map<unsigned long long, unsigned int> index_of;
+    for (unsigned int i = 0; i < nodes_.size(); ++i)
+      index_of.emplace(nodes_.nodes[i].dof, i);
+    NodeNaming naming;
+    naming.index = [&](const unsigned long long name) {
+      const auto it = index_of.find(pending_.dof_of_name(name));
+      return it == index_of.end() ? -1 : static_cast<int>(it->second);
+    };
+    for (std::size_t q = 0; q < pending_.dofs.size(); ++q)
+      {
+        if (pending_.interactions[q].size() != interactions_.size())
+          continue;
+        // A writer's state counts for the nodes it owned and this rank owns (each rank
+        // evaluates the pairs of its own nodes).
+        std::vector<int> where(pending_.dofs[q].size(), -1);
+        for (std::size_t k = 0; k < where.size(); ++k)
+          if (pending_.owned[q][k])
+            {
+              const auto it = index_of.find(pending_.dofs[q][k]);
+              if (it != index_of.end() && nodes_.nodes[it->second].owned)
+                where[k] = static_cast<int>(it->second);
+            }
+        for (std::size_t s = 0; s < interactions_.size(); ++s)
+          {
+            base::BinaryReader in(pending_.interactions[q][s]);
+            interactions_[s]->read_state(in, nodes_, where, naming);
+          }
+      }
+    pending_ = Pending();
   }
 
   Contact::Carried
   Contact::carry() const
   {
     Carried c;
-    if (nodes_.nodes.empty() || interactions_.empty())
+    if (own_.empty() && nodes_.nodes.empty())
       return c;
-    const std::size_t n = nodes_.size();
-    c.dof.resize(n);
-    for (std::size_t i = 0; i < n; ++i)
-      c.dof[i] = nodes_.nodes[i].dof;
-    c.force = force_;
+    if (interactions_.empty())
+      return c;
+    for (const auto &n : nodes_.nodes)
+      {
+        c.dof.push_back(n.dof);
+        c.owned.push_back(n.owned);
+      }
     NodeNaming naming;
     naming.name = [&](const unsigned int i) { return nodes_.nodes[i].dof; };
     for (const auto &in : interactions_)
@@ -407,60 +751,44 @@ namespace shard::contact
         in->write_state(w, nodes_, naming);
         c.interactions.push_back(w.str());
       }
-    for (std::size_t k = 0; k < owned_local_dof_.size() && 3 * k < x_old_.size(); ++k)
+    for (std::size_t k = 0; k < own_.size() && 3 * k < x_old_.size(); ++k)
       {
-        c.owned_dof.push_back(nodes_.nodes[owned_begin_ + k].dof);
+        c.owned_dof.push_back(own_[k].dof);
+        c.force.insert(c.force.end(), &own_force_[3 * k], &own_force_[3 * k] + 3);
         c.x_old.insert(c.x_old.end(), &x_old_[3 * k], &x_old_[3 * k] + 3);
       }
     return c;
   }
 
   void
-  Contact::read_interactions(const std::vector<std::string> &states, const std::vector<int> &where,
-                             const NodeNaming &naming)
-  {
-    for (std::size_t s = 0; s < interactions_.size(); ++s)
-      {
-        base::BinaryReader in(states[s]);
-        interactions_[s]->read_state(in, nodes_, where, naming);
-      }
-  }
-
-  void
   Contact::restore(const Carried &c)
   {
-    if (c.dof.empty() || c.interactions.size() != interactions_.size())
+    if (c.interactions.size() != interactions_.size())
       return;
-    std::unordered_map<unsigned long long, unsigned int> index_of;
-    for (unsigned int i = 0; i < nodes_.size(); ++i)
-      index_of.emplace(nodes_.nodes[i].dof, i);
-    NodeNaming naming;
-    naming.index = [&](const unsigned long long dof) {
-      const auto it = index_of.find(dof);
-      return it == index_of.end() ? -1 : static_cast<int>(it->second);
-    };
-    std::vector<int> where(c.dof.size());
-    for (std::size_t k = 0; k < c.dof.size(); ++k)
+    if (!c.dof.empty())
       {
-        where[k] = naming.index(c.dof[k]);
-        if (where[k] >= 0)
-          for (unsigned int d = 0; d < 3; ++d)
-            force_[3 * where[k] + d] = c.force[3 * k + d];
+        pending_.dofs         = {c.dof};
+        pending_.owned        = {c.owned};
+        pending_.interactions = {c.interactions};
+        pending_.dof_of_name  = [](const unsigned long long dof) { return dof; };
       }
-    read_interactions(c.interactions, where, naming);
-    // Positions of the last step of this rank's nodes; a node new to the contact has none (NaN:
-    // no work booked for it in the next step, when its force is still 0 from its entry offset).
-    std::unordered_map<unsigned long long, const double *> x_of;
+    // Forces and positions of the last step of this rank's nodes; a node new to the contact
+    // has none (NaN: no work booked for it in the next step, when its force is still 0 from its
+    // entry offset).
+    std::unordered_map<unsigned long long, std::size_t> k_of;
     for (std::size_t k = 0; k < c.owned_dof.size(); ++k)
-      x_of.emplace(c.owned_dof[k], &c.x_old[3 * k]);
-    if (!c.owned_dof.empty() || !owned_local_dof_.empty())
+      k_of.emplace(c.owned_dof[k], k);
+    if (!c.owned_dof.empty() || !own_.empty())
       {
-        x_old_.assign(3 * owned_local_dof_.size(), std::numeric_limits<double>::quiet_NaN());
-        for (std::size_t k = 0; k < owned_local_dof_.size(); ++k)
+        x_old_.assign(3 * own_.size(), std::numeric_limits<double>::quiet_NaN());
+        for (std::size_t k = 0; k < own_.size(); ++k)
           {
-            const auto it = x_of.find(nodes_.nodes[owned_begin_ + k].dof);
-            if (it != x_of.end())
-              std::copy(it->second, it->second + 3, &x_old_[3 * k]);
+            const auto it = k_of.find(own_[k].dof);
+            if (it != k_of.end())
+              {
+                std::copy_n(&c.x_old[3 * it->second], 3, &x_old_[3 * k]);
+                std::copy_n(&c.force[3 * it->second], 3, &own_force_[3 * k]);
+              }
           }
       }
   }
@@ -468,31 +796,84 @@ namespace shard::contact
   double
   Contact::memory_consumption() const
   {
-    return sizeof(ContactNode) * nodes_.nodes.capacity() + sizeof(ContactSegment) * nodes_.segments.capacity() +
-           sizeof(double) * (nodes_.state.capacity() + force_.capacity() + force_old_.capacity() + x_old_.capacity() +
-                             reach_.capacity()) +
-           sizeof(Vec3) * x_build_.capacity() + sizeof(int) * (counts_.capacity() + displs_.capacity()) +
-           sizeof(unsigned int) * owned_local_dof_.capacity();
+    std::size_t lists = 0;
+    for (const auto &l : send_lists_)
+      lists += l.capacity();
+    for (const auto &l : recv_lists_)
+      lists += l.capacity();
+    return sizeof(ContactNode) * (nodes_.nodes.capacity() + own_.capacity()) +
+           sizeof(ContactSegment) * nodes_.segments.capacity() + sizeof(OwnSegment) * own_segments_.capacity() +
+           sizeof(double) * (nodes_.state.capacity() + force_.capacity() + own_force_.capacity() +
+                             own_force_old_.capacity() + x_old_.capacity() + reach_.capacity() +
+                             own_state_.capacity()) +
+           sizeof(Vec3) * x_build_.capacity() +
+           sizeof(unsigned int) * (owned_local_dof_.capacity() + own_index_.capacity() + lists);
   }
 
   double
-  Contact::exchange(const mesh::Vector &d, const mesh::Vector &v)
+  Contact::exchange(const unsigned int step, const double dt, const mesh::Vector &d, const mesh::Vector &v)
   {
     if (interactions_.empty())
       return 0.;
-    std::vector<double> mine(state_record * owned_local_dof_.size());
-    for (std::size_t k = 0; k < owned_local_dof_.size(); ++k)
+    for (std::size_t k = 0; k < own_.size(); ++k)
+      for (unsigned int c = 0; c < 3; ++c)
+        {
+          own_state_[state_record * k + c]     = own_[k].X[c] + d.local_element(owned_local_dof_[k] + c);
+          own_state_[state_record * k + 3 + c] = v.local_element(owned_local_dof_[k] + c);
+        }
+    // Rebuild rule, one verdict for all ranks: the rebuild interval, or an own node moved more
+    // than its reach since the last build.
+    bool rebuild = halo_stale_ || !built_ || step >= last_build_ + rebuild_interval_;
+    for (std::size_t k = 0; k < own_.size() && !rebuild; ++k)
       {
-        const ContactNode &n = nodes_.nodes[owned_begin_ + k];
-        for (unsigned int c = 0; c < 3; ++c)
-          {
-            mine[state_record * k + c]     = n.X[c] + d.local_element(owned_local_dof_[k] + c);
-            mine[state_record * k + 3 + c] = v.local_element(owned_local_dof_[k] + c);
-          }
+        const unsigned int i  = own_index_[k];
+        const double      *x  = &own_state_[state_record * k];
+        const Vec3         dx{{x[0] - x_build_[i][0], x[1] - x_build_[i][1], x[2] - x_build_[i][2]}};
+        rebuild               = norm(dx) > reach_[i];
       }
-    MPI_Allgatherv(mine.data(), static_cast<int>(mine.size()), MPI_DOUBLE, nodes_.state.data(), counts_.data(),
-                   displs_.data(), MPI_DOUBLE, comm_);
-    return base::Traffic::to_all_others(sizeof(double) * mine.size(), comm_);
+    if (Utilities::MPI::n_mpi_processes(comm_) > 1)
+      rebuild = Utilities::MPI::logical_or(rebuild, comm_);
+    if (!rebuild)
+      return exchange_states();
+    d_                 = &d;
+    const double bytes = build_halo(dt);
+    d_                 = nullptr;
+    build_pending_     = true;
+    return bytes;
+  }
+
+  double
+  Contact::exchange_states()
+  {
+    copy_own_states();
+    if (send_ranks_.empty() && recv_ranks_.empty())
+      return 0.;
+    std::vector<std::vector<double>> out(send_ranks_.size()), in(recv_ranks_.size());
+    std::vector<MPI_Request>         requests;
+    requests.reserve(out.size() + in.size());
+    constexpr int tag = 2807;
+    for (std::size_t q = 0; q < recv_ranks_.size(); ++q)
+      {
+        in[q].resize(state_record * recv_lists_[q].size());
+        requests.emplace_back();
+        MPI_Irecv(in[q].data(), static_cast<int>(in[q].size()), MPI_DOUBLE, static_cast<int>(recv_ranks_[q]), tag,
+                  comm_, &requests.back());
+      }
+    double bytes = 0;
+    for (std::size_t q = 0; q < send_ranks_.size(); ++q)
+      {
+        for (const unsigned int k : send_lists_[q])
+          out[q].insert(out[q].end(), &own_state_[state_record * k], &own_state_[state_record * k] + state_record);
+        bytes += sizeof(double) * out[q].size();
+        requests.emplace_back();
+        MPI_Isend(out[q].data(), static_cast<int>(out[q].size()), MPI_DOUBLE, static_cast<int>(send_ranks_[q]), tag,
+                  comm_, &requests.back());
+      }
+    MPI_Waitall(static_cast<int>(requests.size()), requests.data(), MPI_STATUSES_IGNORE);
+    for (std::size_t q = 0; q < recv_ranks_.size(); ++q)
+      for (std::size_t t = 0; t < recv_lists_[q].size(); ++t)
+        std::copy_n(&in[q][state_record * t], state_record, &nodes_.state[state_record * recv_lists_[q][t]]);
+    return bytes;
   }
 
   void
@@ -531,70 +912,149 @@ namespace shard::contact
     ContactResult result;
     if (interactions_.empty())
       return result;
-    const unsigned int n = nodes_.size();
     // Bonds broken and particles freed since the last step (what the bond filter sees).
     const BondNews news = bonds_.sync(particles_->broken_bonds(), particles_->free_particles());
-    // Rebuild rule: the rebuild interval, or a node moved more than its reach since the last
-    // build.
-    bool rebuild = !built_ || step >= last_build_ + rebuild_interval_;
-    for (unsigned int i = 0; i < n && !rebuild; ++i)
+    if (build_pending_)
       {
-        const Vec3 x = nodes_.position(i);
-        const Vec3 dx{{x[0] - x_build_[i][0], x[1] - x_build_[i][1], x[2] - x_build_[i][2]}};
-        rebuild = norm(dx) > reach_[i];
+        build_candidates(step, dt);
+        build_pending_ = false;
       }
-    if (rebuild)
-      build_candidates(step, dt);
     else
       // Bonds broke since the last step and the candidates were not rebuilt: their pairs join
       // the candidates.
       for (auto &in : interactions_)
         in->wake(news);
 
-    force_old_.swap(force_);
     std::fill(force_.begin(), force_.end(), 0.);
     ForceSink sink(force_, friction_velocity_);
     for (auto &in : interactions_)
       in->add_forces(nodes_, step, dt, sink);
     wall_force_ = sink.wall_force;
 
-    // Forces of this rank's nodes; contact work on them (trapezoid over the displacement).
-    const bool first = x_old_.empty();
-    if (first)
-      x_old_.assign(3 * owned_local_dof_.size(), 0.);
-    // (A local sum: the member would be stored and reloaded at every term; same order, same value.)
-    double energy = energy_;
-    for (std::size_t k = 0; k < owned_local_dof_.size(); ++k)
-      {
-        const unsigned int i = owned_begin_ + k;
-        for (unsigned int c = 0; c < 3; ++c)
-          {
-            const double x = nodes_.state[state_record * i + c];
-            f.local_element(owned_local_dof_[k] + c) += force_[3 * i + c];
-            if (!first && !std::isnan(x_old_[3 * k + c]))
-              energy -= 0.5 * (force_old_[3 * i + c] + force_[3 * i + c]) * (x - x_old_[3 * k + c]);
-            x_old_[3 * k + c] = x;
-          }
-      }
-    energy_ = energy;
-    // Friction dissipation (replicated on every rank, counted on rank 0), mid-step velocities.
-    if (Utilities::MPI::this_mpi_process(comm_) == 0)
-      {
-        friction_energy_ += rounded_product(sink.friction_power, dt);
-        damping_energy_ += rounded_product(sink.damping_power, dt);
-        stored_energy_ = sink.stored;
-      }
+    // The forces of this rank's pairs on its own nodes; those on halo nodes go to their owners
+    // at accumulate().
+    own_force_old_.swap(own_force_);
+    for (std::size_t k = 0; k < own_.size(); ++k)
+      for (unsigned int c = 0; c < 3; ++c)
+        {
+          own_force_[3 * k + c] = force_[3 * own_index_[k] + c];
+          f.local_element(owned_local_dof_[k] + c) += own_force_[3 * k + c];
+        }
+    friction_energy_ += rounded_product(sink.friction_power, dt);
+    damping_energy_ += rounded_product(sink.damping_power, dt);
+    stored_energy_ = sink.stored;
     result.stable_dt = stable_dt_;
     return result;
   }
+
+  double
+  Contact::accumulate(mesh::Vector &f)
+  {
+    if (interactions_.empty())
+      return 0.;
+    double bytes = 0;
+    if (!send_ranks_.empty() || !recv_ranks_.empty())
+      {
+        // The reverse of the exchange: forces on halo nodes to their owners.
+        std::vector<std::vector<double>> out(recv_ranks_.size()), in(send_ranks_.size());
+        std::vector<MPI_Request>         requests;
+        constexpr int                    tag = 2808;
+        for (std::size_t q = 0; q < send_ranks_.size(); ++q)
+          {
+            in[q].resize(3 * send_lists_[q].size());
+            requests.emplace_back();
+            MPI_Irecv(in[q].data(), static_cast<int>(in[q].size()), MPI_DOUBLE, static_cast<int>(send_ranks_[q]), tag,
+                      comm_, &requests.back());
+          }
+        for (std::size_t q = 0; q < recv_ranks_.size(); ++q)
+          {
+            for (const unsigned int i : recv_lists_[q])
+              out[q].insert(out[q].end(), &force_[3 * i], &force_[3 * i] + 3);
+            bytes += sizeof(double) * out[q].size();
+            requests.emplace_back();
+            MPI_Isend(out[q].data(), static_cast<int>(out[q].size()), MPI_DOUBLE, static_cast<int>(recv_ranks_[q]),
+                      tag, comm_, &requests.back());
+          }
+        MPI_Waitall(static_cast<int>(requests.size()), requests.data(), MPI_STATUSES_IGNORE);
+        for (std::size_t q = 0; q < send_ranks_.size(); ++q)
+          for (std::size_t t = 0; t < send_lists_[q].size(); ++t)
+            {
+              const unsigned int k = send_lists_[q][t];
+              for (unsigned int c = 0; c < 3; ++c)
+                {
+                  own_force_[3 * k + c] += in[q][3 * t + c];
+                  f.local_element(owned_local_dof_[k] + c) += in[q][3 * t + c];
+                }
+            }
+      }
+    // Contact work on this rank's nodes (trapezoid over the displacement).
+    const bool first = x_old_.empty();
+    if (first)
+      x_old_.assign(3 * own_.size(), 0.);
+    // (A local sum: the member would be stored and reloaded at every term; same order, same value.)
+    double energy = energy_;
+    for (std::size_t k = 0; k < own_.size(); ++k)
+      for (unsigned int c = 0; c < 3; ++c)
+        {
+          const double x = own_state_[state_record * k + c];
+          if (!first && !std::isnan(x_old_[3 * k + c]))
+            energy -= 0.5 * (own_force_old_[3 * k + c] + own_force_[3 * k + c]) * (x - x_old_[3 * k + c]);
+          x_old_[3 * k + c] = x;
+        }
+    energy_ = energy;
+    return bytes;
+  }
+
+  namespace
+  {
+    template <typename T>
+    void
+    put_lists(base::BinaryWriter &out, const std::vector<unsigned int> &ranks, const std::vector<std::vector<T>> &lists)
+    {
+      out.put(ranks);
+      out.put(static_cast<std::uint64_t>(lists.size()));
+      for (const auto &l : lists)
+        out.put(l);
+    }
+
+    template <typename T>
+    void
+    get_lists(base::BinaryReader &in, std::vector<unsigned int> &ranks, std::vector<std::vector<T>> &lists)
+    {
+      in.get(ranks);
+      lists.resize(in.get<std::uint64_t>());
+      for (auto &l : lists)
+        in.get(l);
+    }
+  } // namespace
 
   void
   Contact::save(base::BinaryWriter &out) const
   {
     out.put(std::string("contact"));
-    out.put(static_cast<std::uint64_t>(nodes_.size()));
+    out.put(static_cast<std::uint64_t>(own_.size()));
+    // The halo: node records (owned flag apart), segments, state.
+    std::vector<double>        records;
+    std::vector<unsigned char> owned;
+    for (const auto &n : nodes_.nodes)
+      {
+        pack_node(n, records);
+        owned.push_back(n.owned);
+      }
+    std::vector<double> segments;
+    for (const auto &g : nodes_.segments)
+      segments.insert(segments.end(), {double(g.node[0]), double(g.node[1]), double(g.node[2]), double(g.node[3]),
+                                       g.stiffness, double(g.body)});
+    out.put(records);
+    out.put(owned);
+    out.put(segments);
+    out.put(nodes_.state);
+    out.put(own_index_);
+    put_lists(out, send_ranks_, send_lists_);
+    put_lists(out, recv_ranks_, recv_lists_);
     out.put(force_);
-    out.put(force_old_);
+    out.put(own_force_);
+    out.put(own_force_old_);
     out.put(x_old_);
     out.put(x_build_);
     out.put(reach_);
@@ -604,6 +1064,8 @@ namespace shard::contact
       in->save(out);
     out.put(last_build_);
     out.put(built_);
+    out.put(halo_stale_);
+    out.put(stable_dt_);
     out.put(n_rebuilds_);
     out.put(energy_);
     out.put(friction_energy_);
@@ -615,13 +1077,48 @@ namespace shard::contact
   Contact::load(base::BinaryReader &in)
   {
     in.expect("contact");
-    if (in.get<std::uint64_t>() != nodes_.size())
+    if (in.get<std::uint64_t>() != own_.size())
       throw std::runtime_error("the contact nodes of the checkpoint differ from this scene's");
+    std::vector<double>        records, segments;
+    std::vector<unsigned char> owned;
+    in.get(records);
+    in.get(owned);
+    in.get(segments);
+    if (records.size() != node_record * owned.size() || segments.size() % 6 != 0)
+      throw std::runtime_error("the contact halo of the checkpoint is damaged");
+    nodes_ = ContactNodes();
+    for (std::size_t i = 0; i < owned.size(); ++i)
+      {
+        nodes_.nodes.push_back(unpack_node(&records[node_record * i]));
+        nodes_.nodes.back().owned = owned[i] != 0;
+      }
+    for (std::size_t p = 0; p < segments.size(); p += 6)
+      {
+        ContactSegment g;
+        for (unsigned int v = 0; v < 4; ++v)
+          g.node[v] = static_cast<unsigned int>(segments[p + v]);
+        g.stiffness = segments[p + 4];
+        g.body      = static_cast<unsigned int>(segments[p + 5]);
+        nodes_.segments.push_back(g);
+      }
+    in.get(nodes_.state);
+    in.get(own_index_);
+    if (own_index_.size() != own_.size())
+      throw std::runtime_error("the contact nodes of the checkpoint differ from this scene's");
+    for (std::size_t k = 0; k < own_.size(); ++k)
+      if (own_index_[k] >= nodes_.size() || nodes_.nodes[own_index_[k]].dof != own_[k].dof)
+        throw std::runtime_error("the contact nodes of the checkpoint differ from this scene's");
+    get_lists(in, send_ranks_, send_lists_);
+    get_lists(in, recv_ranks_, recv_lists_);
     in.get(force_);
-    in.get(force_old_);
+    in.get(own_force_);
+    in.get(own_force_old_);
     in.get(x_old_);
     in.get(x_build_);
     in.get(reach_);
+    for (auto &interaction : interactions_)
+      interaction->reset(nodes_);
+    bonds_.reset(nodes_);
     bonds_.load(in);
     if (in.get<std::uint64_t>() != interactions_.size())
       throw std::runtime_error("the contact interactions of the checkpoint differ from this scene's");
@@ -629,11 +1126,17 @@ namespace shard::contact
       interaction->load(in);
     in.get(last_build_);
     in.get(built_);
+    in.get(halo_stale_);
+    in.get(stable_dt_);
     in.get(n_rebuilds_);
     in.get(energy_);
     in.get(friction_energy_);
     in.get(damping_energy_);
     in.get(wall_force_);
+    stable_stale_  = false;
+    build_pending_ = false;
+    pending_       = Pending();
+    own_state_.assign(state_record * own_.size(), 0.);
   }
 
   Contact::PortableState
@@ -642,7 +1145,6 @@ namespace shard::contact
     PortableState p;
     for (const auto &n : nodes_.nodes)
       p.keys.push_back(key_of_node(n.dof / 3));
-    p.force = force_;
     NodeNaming naming;
     naming.name = [&](const unsigned int i) { return p.keys[i]; };
     for (const auto &in : interactions_)
@@ -651,11 +1153,14 @@ namespace shard::contact
         in->write_state(w, nodes_, naming);
         p.interactions.push_back(w.str());
       }
-    for (std::size_t k = 0; k < owned_local_dof_.size() && 3 * k < x_old_.size(); ++k)
+    for (std::size_t k = 0; k < own_.size() && 3 * k < x_old_.size(); ++k)
       {
-        p.owned_keys.push_back(p.keys[owned_begin_ + k]);
+        p.owned_keys.push_back(key_of_node(own_[k].dof / 3));
         for (unsigned int c = 0; c < 3; ++c)
-          p.x_old.push_back(x_old_[3 * k + c]);
+          {
+            p.x_old.push_back(x_old_[3 * k + c]);
+            p.force.push_back(own_force_[3 * k + c]);
+          }
       }
     p.last_build      = last_build_;
     p.n_rebuilds      = n_rebuilds_;
@@ -672,50 +1177,52 @@ namespace shard::contact
   {
     if (states.empty())
       return;
-    std::unordered_map<unsigned long long, unsigned int> index_of_dof;
-    for (unsigned int i = 0; i < nodes_.size(); ++i)
-      index_of_dof.emplace(nodes_.nodes[i].dof, i);
-    NodeNaming naming;
-    naming.index = [&](const unsigned long long key) {
-      const auto it = index_of_dof.find(3 * node_of_key(key));
-      if (it == index_of_dof.end())
-        throw std::runtime_error("contact node " + std::to_string(key) + " of the checkpoint is not a contact node");
-      return static_cast<int>(it->second);
-    };
-    const auto &first = states.front();
-    if (first.keys.size() != nodes_.size() || first.interactions.size() != interactions_.size())
-      throw std::runtime_error("the contact nodes of the checkpoint differ from this scene's");
-    std::vector<int> where(first.keys.size());
-    for (std::size_t k = 0; k < first.keys.size(); ++k)
-      {
-        where[k] = naming.index(first.keys[k]);
-        for (unsigned int c = 0; c < 3; ++c)
-          force_[3 * where[k] + c] = first.force[3 * k + c];
-      }
-    read_interactions(first.interactions, where, naming);
-    std::unordered_map<unsigned long long, const double *> x_of_key;
+    const bool root = Utilities::MPI::this_mpi_process(comm_) == 0;
+    pending_        = Pending();
+    pending_.dof_of_name = [node_of_key](const unsigned long long key) { return 3 * node_of_key(key); };
+    std::unordered_map<unsigned long long, std::pair<const double *, const double *>> last_of_key; // x, force
+    double friction = 0, damping = 0;
     for (const auto &st : states)
-      for (std::size_t k = 0; k < st.owned_keys.size(); ++k)
-        x_of_key[st.owned_keys[k]] = &st.x_old[3 * k];
-    std::unordered_map<unsigned long long, unsigned long long> key_of_node;
-    for (const auto key : first.keys)
-      key_of_node.emplace(node_of_key(key), key);
-    x_old_.assign(3 * owned_local_dof_.size(), 0.);
-    for (std::size_t k = 0; k < owned_local_dof_.size(); ++k)
       {
-        const auto it = x_of_key.find(key_of_node.at(nodes_.nodes[owned_begin_ + k].dof / 3));
-        if (it == x_of_key.end())
+        if (st.interactions.size() != interactions_.size() || st.force.size() != 3 * st.owned_keys.size())
+          throw std::runtime_error("the contact state of the checkpoint differs from this scene's");
+        std::unordered_map<unsigned long long, bool> writer_owned;
+        for (const auto key : st.owned_keys)
+          writer_owned.emplace(key, true);
+        pending_.dofs.emplace_back();
+        pending_.owned.emplace_back();
+        for (const auto key : st.keys)
+          {
+            pending_.dofs.back().push_back(3 * node_of_key(key));
+            pending_.owned.back().push_back(writer_owned.count(key) ? 1 : 0);
+          }
+        pending_.interactions.push_back(st.interactions);
+        for (std::size_t k = 0; k < st.owned_keys.size(); ++k)
+          last_of_key[st.owned_keys[k]] = {&st.x_old[3 * k], &st.force[3 * k]};
+        friction += st.friction_energy;
+        damping += st.damping_energy;
+      }
+    std::unordered_map<unsigned long long, unsigned long long> key_of_node;
+    for (const auto &[key, last] : last_of_key)
+      key_of_node.emplace(node_of_key(key), key);
+    x_old_.assign(3 * own_.size(), 0.);
+    for (std::size_t k = 0; k < own_.size(); ++k)
+      {
+        const auto key = key_of_node.find(own_[k].dof / 3);
+        if (key == key_of_node.end())
           {
             x_old_.clear(); // no contact work for one step
             break;
           }
-        std::copy(it->second, it->second + 3, &x_old_[3 * k]);
+        const auto &last = last_of_key.at(key->second);
+        std::copy_n(last.first, 3, &x_old_[3 * k]);
+        std::copy_n(last.second, 3, &own_force_[3 * k]);
       }
     built_           = false;
-    last_build_      = first.last_build;
-    n_rebuilds_      = first.n_rebuilds;
+    last_build_      = states.front().last_build;
+    n_rebuilds_      = states.front().n_rebuilds;
     energy_          = energy;
-    friction_energy_ = Utilities::MPI::this_mpi_process(comm_) == 0 ? first.friction_energy : 0.;
-    damping_energy_  = Utilities::MPI::this_mpi_process(comm_) == 0 ? first.damping_energy : 0.;
+    friction_energy_ = root ? friction : 0.;
+    damping_energy_  = root ? damping : 0.;
   }
 } // namespace shard::contact

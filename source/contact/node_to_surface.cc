@@ -37,6 +37,12 @@ namespace shard::contact
   }
 
   double
+  NodeToSurface::search_depth() const
+  {
+    return penetration_.empty() ? 0. : *std::max_element(penetration_.begin(), penetration_.end());
+  }
+
+  double
   NodeToSurface::stable_dt(const ContactNodes &nodes) const
   {
     const auto &s = settings_;
@@ -56,7 +62,8 @@ namespace shard::contact
             if (nodes.nodes[a].mass > 0)
               dt = std::min(dt, damped * 2. * std::sqrt(nodes.nodes[a].mass / (4. * s.penalty * g.stiffness)));
     // Two masses on one spring: the reduced mass m/2. A node of a symmetric pair is a slave and
-    // a segment node at once: twice the spring.
+    // a segment node at once: twice the spring. (The stiffest segment of any rank.)
+    k_segment      = global_max_(k_segment);
     const double k = k_segment * (s.symmetric ? 2. : 1.);
     for (const auto &n : nodes.nodes)
       if (std::count(s.bodies.begin(), s.bodies.end(), n.body) && n.mass > 0 && k > 0)
@@ -160,6 +167,9 @@ namespace shard::contact
     const auto   consider = [&](const unsigned int i, const unsigned int k) {
       const Box         &b   = boxes[k];
       const unsigned int g   = used[k];
+      // A pair is evaluated on the rank that owns its slave.
+      if (!nodes.nodes[i].owned)
+        return;
       const double       r   = reach[i] + b.reach;
       const double       dp  = b.depth + pen[i];
       const auto        &seg = nodes.segments[g];
@@ -181,7 +191,8 @@ namespace shard::contact
     std::vector<unsigned int> slow;
     std::vector<Vec3>         slow_x;
     for (unsigned int i = 0; i < n; ++i)
-      if (reach[i] == base && (nodes.member(i, in.bodies) || (in.symmetric && nodes.nodes[i].body == in.target_body)))
+      if (reach[i] == base && nodes.nodes[i].owned &&
+          (nodes.member(i, in.bodies) || (in.symmetric && nodes.nodes[i].body == in.target_body)))
         {
           slow.push_back(i);
           slow_x.push_back(x[i]);
@@ -204,7 +215,7 @@ namespace shard::contact
       centres.push_back(b.centre);
     BinGrid segment_grid;
     for (unsigned int i = 0; i < n; ++i)
-      if (reach[i] > base && !boxes.empty())
+      if (reach[i] > base && nodes.nodes[i].owned && !boxes.empty())
         {
           if (segment_grid.size() == 0)
             segment_grid.build(centres, 2. * widest);
@@ -620,10 +631,16 @@ namespace shard::contact
         for (unsigned int c = 0; c < 3; ++c)
           contact_normal_[3 * i + c] = contact_normal[3 * k + c];
       }
-    previous_slaves_.clear();
+    // The slaves of this writer (states of several writers add up).
+    std::vector<int> where_of_name(nodes.size(), 0);
+    for (const int i : where)
+      if (i >= 0)
+        where_of_name[i] = 1;
     for (const auto name : slaves)
-      if (const int j = naming.index(name); j >= 0)
+      if (const int j = naming.index(name); j >= 0 && where_of_name[j])
         previous_slaves_.push_back(static_cast<unsigned int>(j));
+    std::sort(previous_slaves_.begin(), previous_slaves_.end());
+    previous_slaves_.erase(std::unique(previous_slaves_.begin(), previous_slaves_.end()), previous_slaves_.end());
     candidates_.clear();
   }
 

@@ -143,6 +143,10 @@ namespace shard::contact
         for (unsigned int t = first[i]; t < first[i + 1]; ++t)
           {
             const unsigned int a = std::min(i, others[t]), b = std::max(i, others[t]);
+            // A pair is evaluated on the rank that owns its particle of smaller DOF (the node
+            // list is sorted by DOF).
+            if (!nodes.nodes[a].owned)
+              continue;
             if (!context.bonds.bonded(nodes, a, b))
               cand.push_back({{a, b}});
             else
@@ -288,9 +292,8 @@ namespace shard::contact
     if (pairs.size() != offsets.size())
       throw std::runtime_error("the particle contact state does not fit its node list");
     // The next build (Contact's built flag is false) keeps the offsets of the pairs it finds
-    // again; both orientations (the build lists a pair by the node that found it).
-    candidates_.clear();
-    offset_.clear();
+    // again; both orientations (the build lists a pair by the node that found it). States of
+    // several writers add up.
     for (std::size_t q = 0; q < pairs.size(); ++q)
       {
         const int a = naming.index(pairs[q].first), b = naming.index(pairs[q].second);

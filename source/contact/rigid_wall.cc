@@ -26,7 +26,7 @@ namespace shard::contact
   {
     candidates_.clear();
     for (unsigned int i = 0; i < context.nodes.size(); ++i)
-      if (context.nodes.member(i, settings_.bodies) &&
+      if (context.nodes.nodes[i].owned && context.nodes.member(i, settings_.bodies) &&
           plane_gap(context.x[i], settings_.point, settings_.normal) < 2. * context.reach[i])
         candidates_.push_back(i);
   }

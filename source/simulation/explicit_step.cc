@@ -80,7 +80,7 @@ namespace shard
     s_.d.update_ghost_values();
     s_.v.update_ghost_values();
     traffic_.add(base::Traffic::ghost_values, ghost_bytes);
-    traffic_.add(base::Traffic::contact_nodes, c_.contact.exchange(s_.d, s_.v));
+    traffic_.add(base::Traffic::contact_nodes, c_.contact.exchange(s_.step, s_.dt, s_.d, s_.v));
     // R1 filter steps smooth the particle coefficients and exchange once more. (The filter's
     // energy uses f, which still holds the force of the last step, f^{n-1}.)
     if (c_.spg.is_filter_step(s_.step))
@@ -155,6 +155,7 @@ namespace shard
       const auto timer = c_.times.scope(Phase::accumulate);
       s_.f.compress(VectorOperation::add);
       traffic_.add(base::Traffic::ghost_sums, sizeof(double) * s_.f.get_partitioner()->n_ghost_indices());
+      traffic_.add(base::Traffic::contact_forces, c_.contact.accumulate(s_.f));
       s_.f += s_.f_ext;
       // Elements that meet a conversion criterion at the end of this step.
       if (c_.conversion.is_check_step(s_.step) && failure_.empty())

@@ -534,7 +534,7 @@ namespace shard
                                      {"free_particles", double(bonds_.n_free()), true},
                                      {"contact_energy", e.contact},
                                      {"friction_energy", e.friction},
-                                     {"contact_wall_force", contact_.wall_force()},
+                                     {"contact_wall_force", Utilities::MPI::sum(contact_.wall_force(), comm_)},
                                      {"contact_stored_energy", e.stored},
                                      {"contact_lost_energy", e.contact_lost()},
                                      {"contact_damping_energy", e.damping}};

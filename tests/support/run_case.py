@@ -22,7 +22,9 @@ A case is a directory holding <case>.prm, or a path <case>.prm; beside the .prm 
                      "expected" compares with another key of the same summary.json; "sum_of": [keys]
                      instead of "key" checks the sum of several keys (a mass balance); a last
                      part "sum" or "max" of a key reduces a list (a per-rank list: the total or
-                     the largest rank). --summary FILE adds the checks of FILE (a variant).
+                     the largest rank); "at_most" (a number) or "at_most_key" (another key, times
+                     "factor", default 1) instead of "expected" checks an upper bound.
+                     --summary FILE adds the checks of FILE (a variant).
   <case>.fragments   JSON list of checks on fragment_statistics.csv, each
                        {"name", "value", "expected", "where", "aggregate", "rel" | "abs", "source"}:
                      "value" and "expected" are Python expressions of a row's columns (numbers; `body`
@@ -267,6 +269,17 @@ def check_case(args, outdir, failures):
                 v = sum(float(lookup(k)) for k in c["sum_of"])
             else:
                 v = lookup(c["key"])
+            if "at_most" in c or "at_most_key" in c:
+                bound = (float(c["at_most"]) if "at_most" in c
+                         else c.get("factor", 1.0) * float(lookup(c["at_most_key"])))
+                ok = float(v) <= bound
+                what = f"at most {bound:.8g}" + (f" ({c.get('factor', 1.0):g} x {c['at_most_key']})"
+                                                 if "at_most_key" in c else "")
+                print(("ok    " if ok else "FAIL  ") + f"{case}: summary {c['key']}: got {float(v):.8g}, {what}"
+                      + (f" ({c['source']})" if "source" in c else ""))
+                if not ok:
+                    failures.append(f"{case}: summary {c['key']} = {v}, expected {what}")
+                continue
             if "expected_key" in c:
                 # Two results of one run that a conservation law makes equal (e.g. the
                 # fragment masses and the nodal mass).

@@ -32,13 +32,16 @@ namespace shard::base
     {
       /// Phase 3: ghost values of d and v (twice on filter steps).
       ghost_values = 0,
-      /// Phase 3: positions and velocities of the contact nodes.
+      /// Phase 3: positions and velocities of the contact halo nodes (at a candidate rebuild:
+      /// the halo's records and the ranks' bounding boxes).
       contact_nodes = 1,
       /// Phase 4c: failure values of the particles and the lists of broken bonds and freed particles.
       bonds = 2,
       /// Phase 8 (and 4c): ghost force sums to their owners.
       ghost_sums = 3,
-      n_exchanges = 4
+      /// Phase 8: contact forces on halo nodes to their owners.
+      contact_forces = 4,
+      n_exchanges = 5
     };
 
     /// The names in summary.json, led by the phase number.
@@ -46,7 +49,7 @@ namespace shard::base
     names()
     {
       static const std::array<std::string, n_exchanges> n{
-        {"3 ghost values", "3 contact nodes", "4c bonds", "8 ghost sums"}};
+        {"3 ghost values", "3 contact nodes", "4c bonds", "8 ghost sums", "8 contact forces"}};
       return n;
     }
 

@@ -58,11 +58,16 @@ namespace shard::contact
    * forces, critical step and state; they are called in the order of declaration, so the force
    * sums keep their order.
    *
-   * Parallel layout (doc/manual/contact.md): the contact nodes of all ranks are gathered at
-   * every step in the exchange phase, so every rank evaluates every pair and adds the forces of
-   * its own nodes. No pair is split between ranks and the forces do not depend on the
-   * partition. The memory and traffic are O(contact nodes) per rank and step, fine up to a few
-   * 10^5 contact nodes; a scalable import of remote candidates is issue 8.
+   * Parallel layout (doc/manual/contact.md, "Parallel"): every rank keeps its own contact nodes
+   * and the segments of its cells, and a halo: the nodes and segments of other ranks that can
+   * meet one of its nodes before the next candidate rebuild (within the largest reach of any
+   * node, the face depth and the deepest penetration, chosen by the bounding boxes of the
+   * ranks' nodes). Each pair is evaluated once, on the rank that owns its slave (node to
+   * surface), its particle of smaller DOF (particles) or its node (rigid wall); the forces on
+   * halo nodes go back to their owners at the accumulate phase. The halo is rebuilt with the
+   * candidates (the rebuild rule, decided for all ranks at once) and otherwise its positions
+   * and velocities are exchanged point to point each step: the traffic is that of the nodes
+   * near a rank's region, not of the whole contact surface.
    */
   class Contact : public base::ParameterOwner
   {
@@ -74,8 +79,10 @@ namespace shard::contact
     check_parameters(const base::PrmSource &source) const override;
 
     /**
-     * @brief Collects the contact nodes and segments of all ranks, their masses and penalty
-     * stiffnesses. Call again after a conversion (the FE surface and the particles change).
+     * @brief Collects this rank's contact nodes (and tells the owners of the other nodes of its
+     * surface faces), their masses and penalty stiffnesses, and its segments. The halo follows
+     * at the next exchange(). Call again after a conversion (the FE surface and the particles
+     * change).
      * @param mass lumped mass (ghost values not needed)
      * @param converted_cells flags by active cell index (converted cells have no segments)
      * @note Collective.
@@ -93,24 +100,36 @@ namespace shard::contact
     }
 
     /**
-     * @brief The exchange: gathers the current positions X + d and the velocities @p v of
-     * every contact node from its owner.
-     * @return the bytes this rank sent (its records, once to every other rank; base::Traffic)
+     * @brief The exchange of step @p step (length @p dt): decides the candidate rebuild for all
+     * ranks (a node has moved more than its reach since the last build, skin/2 or more for
+     * fast nodes, or the rebuild interval has passed; doc/manual/contact.md). On a rebuild the
+     * halo is chosen afresh (bounding boxes, records sent point to point); otherwise the
+     * current positions X + @p d and velocities @p v of the halo nodes come from their owners.
+     * @p d needs its ghost values (the segments' nodes of this rank's cells).
+     * @return the bytes this rank sent (base::Traffic)
      * @note Collective.
      */
     double
-    exchange(const mesh::Vector &d, const mesh::Vector &v);
+    exchange(unsigned int step, double dt, const mesh::Vector &d, const mesh::Vector &v);
 
     /**
-     * @brief Adds the penalty, damping and friction forces of every contact pair to the owned entries of
-     * @p f; rebuilds the candidate lists when a node has moved more than its reach since the
-     * last build (skin/2, more for fast nodes; doc/manual/contact.md) or the rebuild interval
-     * has passed. Pairs whose bond broke since join the candidates. Accumulates the contact
-     * work and, with the step @p dt, the friction and dashpot dissipation. Not collective (every rank has
-     * every position).
+     * @brief Evaluates the pairs this rank owns (builds their candidates after a rebuild; pairs
+     * whose bond broke since join them) and adds the forces on its own nodes to @p f; the
+     * forces on halo nodes wait for accumulate(). Books the friction and dashpot dissipation of
+     * its pairs with the step @p dt. Not collective.
      */
     ContactResult
     add_forces(unsigned int step, double dt, mesh::Vector &f);
+
+    /**
+     * @brief The accumulate phase: returns the forces on halo nodes to their owners, adds those
+     * received to the owned entries of @p f, and books the contact work of this rank's nodes
+     * (trapezoid over their displacement).
+     * @return the bytes this rank sent (base::Traffic)
+     * @note Collective.
+     */
+    double
+    accumulate(mesh::Vector &f);
 
     /// Energy stored in and dissipated by the contact, -sum of the work of the contact forces
     /// on this rank's nodes (J).
@@ -120,38 +139,38 @@ namespace shard::contact
       return energy_;
     }
 
-    /// Part of energy() dissipated by friction (J, counted on rank 0).
+    /// Part of energy() dissipated by friction in this rank's pairs (J).
     double
     friction_energy() const
     {
       return friction_energy_;
     }
 
-    /// Part of energy() dissipated by the normal contact damping, `damping ratio` (J, counted on
-    /// rank 0).
+    /// Part of energy() dissipated by the normal contact damping, `damping ratio`, in this rank's
+    /// pairs (J).
     double
     damping_energy() const
     {
       return damping_energy_;
     }
 
-    /// Energy held in the penalty springs at the last evaluation, sum of k delta^2 / 2 over the
-    /// pairs in contact (J, counted on rank 0). The part of energy() that returns on separation.
+    /// Energy held in the penalty springs at the last evaluation, sum of k delta^2 / 2 over this
+    /// rank's pairs in contact (J). The part of energy() that returns on separation.
     double
     stored_energy() const
     {
       return stored_energy_;
     }
 
-    /// Sum of the normal forces on the rigid walls at the last evaluation (N, every rank).
+    /// Sum of the normal forces on the rigid walls at the last evaluation, this rank's nodes (N).
     double
     wall_force() const
     {
       return wall_force_;
     }
 
-    /// Bytes of the node and segment lists and the per-node arrays on this rank (the pair lists
-    /// of the interactions are not counted). Replicated today: O(contact nodes of all ranks).
+    /// Bytes of the node and segment lists (own and halo), the exchange lists and the per-node
+    /// arrays on this rank (the pair lists of the interactions are not counted).
     double
     memory_consumption() const;
 
@@ -163,10 +182,11 @@ namespace shard::contact
     }
 
     /**
-     * @brief Checkpoint: writes what this rank carries from step to step (candidate and
-     * dormant pair lists, penetration offsets, entry depths and contact normals, positions and forces of the
-     * last step, build positions and reaches, the bond news seen, counters and energies).
-     * The node order depends on the partition, so load() needs the same rank count.
+     * @brief Checkpoint: writes what this rank carries from step to step (the halo and its
+     * exchange lists, candidate and dormant pair lists, penetration offsets, entry depths and
+     * contact normals, positions and forces of the last step, build positions and reaches, the
+     * bond news seen, counters and energies). The halo depends on the partition, so load()
+     * needs the same rank count.
      */
     void
     save(base::BinaryWriter &out) const;
@@ -184,9 +204,9 @@ namespace shard::contact
      */
     struct PortableState
     {
-      /// Key of every contact node (replicated part, in this rank's node order).
+      /// Key of every contact node of this rank (own and halo, in its node order).
       std::vector<unsigned long long> keys;
-      /// Contact force of the last step, 3 per node (N).
+      /// Contact force of the last step on this rank's nodes, 3 per owned key (N).
       std::vector<double> force;
       /// Per interaction: its state (Interaction::write_state(), nodes named by key).
       std::vector<std::string> interactions;
@@ -212,11 +232,12 @@ namespace shard::contact
     portable_state(const std::function<unsigned long long(unsigned long long)> &key_of_node) const;
 
     /**
-     * @brief Restart at another rank count, after prepare(): forces, entry depths, slaves and
-     * pair offsets from @p states (one per rank that wrote them; replicated parts from the
-     * first), positions of the last step of this rank's nodes from whichever rank had them;
-     * the candidate lists are built afresh at the next step and keep the offsets of the pairs
-     * they find again. @p energy is this rank's share of the contact energy (J).
+     * @brief Restart at another rank count, after prepare(): forces and positions of the last
+     * step of this rank's nodes, entry depths, slaves and pair offsets from @p states (one per
+     * rank that wrote them; each rank's part is the pairs it evaluated), taken over when the halo
+     * is built at the next exchange; the candidate lists are built afresh then and keep the
+     * offsets of the pairs they find again. @p energy is this rank's share of the contact
+     * energy (J); the friction and dashpot energies of all writers go to rank 0.
      * @p node_of_key maps a key back to global DOF / 3.
      */
     void
@@ -229,12 +250,26 @@ namespace shard::contact
     std::vector<InteractionSettings>
     resolve(const mesh::Discretization &discretization, const materials::MaterialLibrary &materials,
             const particles::ParticleSet &particles, const base::PrmSource &source) const;
-    /// Gathers the contact nodes and segments of all ranks (the bodies flagged in @p involved)
-    /// into nodes_ and the exchange layout.
+    /// This rank's contact nodes (own particles, own nodes of its faces, and the nodes of other
+    /// ranks' faces it owns, told point to point) and the segments of its cells (the bodies
+    /// flagged in @p involved).
     void
     gather(const mesh::Discretization &discretization, const materials::MaterialLibrary &materials,
            const particles::ParticleSet &particles, const std::vector<bool> &converted_cells,
            const mesh::Vector &mass, const std::vector<bool> &involved);
+    /// Chooses the halo at the present positions (collective): bounding boxes of the ranks' own
+    /// nodes, the margins, the records sent point to point; sets nodes_, the exchange lists and
+    /// carries the interactions' per-node state over to the new node list. Returns the bytes
+    /// sent.
+    double
+    build_halo(double dt);
+    /// Positions and velocities of the halo nodes from their owners (the lists of the last
+    /// build_halo()). Returns the bytes sent.
+    double
+    exchange_states();
+    /// Puts this rank's own states into nodes_.state.
+    void
+    copy_own_states();
 
     std::string                                names_text_;
     std::vector<std::string>                   names_;
@@ -247,12 +282,41 @@ namespace shard::contact
     /// The interactions, in declaration order (the force sums keep it).
     std::vector<std::unique_ptr<Interaction>> interactions_;
 
-    MPI_Comm                  comm_ = MPI_COMM_SELF;
-    ContactNodes              nodes_;
-    std::vector<int>          counts_, displs_;   // per rank, in doubles (6 per node)
-    std::vector<unsigned int> owned_local_dof_;   // this rank's contact nodes, local DOF
-    unsigned int              owned_begin_ = 0;   // index of this rank's first node in nodes_
-    std::vector<double>       force_, force_old_, x_old_;
+    MPI_Comm comm_ = MPI_COMM_SELF;
+    /// This rank's contact nodes, sorted by DOF, and their local DOF (x component).
+    std::vector<ContactNode>  own_;
+    std::vector<unsigned int> owned_local_dof_;
+    /// A surface face of one of this rank's cells: node DOFs (counter-clockwise from outside),
+    /// their local DOFs (owned or ghost) and reference positions, stiffness and body.
+    struct OwnSegment
+    {
+      std::array<unsigned long long, 4> dof{};
+      std::array<unsigned int, 4>       local{};
+      std::array<Vec3, 4>               X{};
+      double                            stiffness = 0;
+      unsigned int                      body      = 0;
+    };
+    std::vector<OwnSegment> own_segments_;
+    /// Current positions and velocities of the own nodes (6 per node).
+    std::vector<double> own_state_;
+    /// The displacement during exchange() (the segments' current positions).
+    const mesh::Vector *d_ = nullptr;
+    /// The nodes (own and halo, sorted by DOF) and segments (sorted by their nodes' DOFs) the
+    /// interactions see.
+    ContactNodes nodes_;
+    /// Index in nodes_ of each own node.
+    std::vector<unsigned int> own_index_;
+    /// Per other rank: the own nodes it holds in its halo (indices into own_), and the halo
+    /// nodes this rank holds of it (indices into nodes_), in the order they are sent.
+    std::vector<unsigned int>              send_ranks_, recv_ranks_;
+    std::vector<std::vector<unsigned int>> send_lists_, recv_lists_;
+    /// Contact force of the evaluation, 3 per node of nodes_ (N).
+    std::vector<double> force_;
+    /// Total contact force on the own nodes, this step and the last (3 per own node), and their
+    /// positions of the last step (NaN: none yet).
+    std::vector<double> own_force_, own_force_old_, x_old_;
+    /// Positions at the last build and reaches (per node of nodes_; the rebuild rule reads the
+    /// own ones).
     std::vector<Vec3>         x_build_;
     /// Per node, how far it may move before the candidates are rebuilt (m): skin/2, or more
     /// for a node fast enough to cover that in fewer than reach_steps steps.
@@ -262,32 +326,51 @@ namespace shard::contact
     const particles::ParticleSet *particles_ = nullptr;
     unsigned int                  last_build_ = 0;
     bool                          built_      = false;
-    unsigned int                  n_rebuilds_ = 0;
+    /// The halo must be chosen at the next exchange (after prepare()); the candidates must be
+    /// built at the next add_forces() (the halo was rebuilt); the critical step is to be found.
+    bool         halo_stale_ = true, build_pending_ = false, stable_stale_ = true;
+    unsigned int n_rebuilds_ = 0;
     double energy_ = 0, friction_energy_ = 0, damping_energy_ = 0, stored_energy_ = 0, wall_force_ = 0, stable_dt_ = 1e300;
     double skin_used_ = 0;
+
+    /**
+     * @brief Interaction states written for another node list (a conversion, a restart at
+     * another rank count), read when the next halo is built: per writer, the DOF of each node of
+     * its list, whether the writer owned it (only its own nodes' states count), and the states.
+     */
+    struct Pending
+    {
+      std::vector<std::vector<unsigned long long>> dofs;
+      std::vector<std::vector<unsigned char>>      owned;
+      std::vector<std::vector<std::string>>        interactions;
+      /// Names inside the states to DOFs (identity for a conversion; node keys for a restart).
+      std::function<unsigned long long(unsigned long long)> dof_of_name;
+    };
+    Pending pending_;
+    /// Reads pending_ into the interactions (after the halo of the new node list is built).
+    void
+    read_pending();
 
     /// What a second prepare() (after a conversion) keeps of the contacts that go on, by global
     /// DOF: the DOFs do not change in a conversion, the node indices do.
     struct Carried
     {
-      std::vector<unsigned long long> dof;          // per old node
-      std::vector<double>             force;        // 3 per old node
+      std::vector<unsigned long long> dof;          // per old node of nodes_
+      std::vector<unsigned char>      owned;        // per old node
       std::vector<std::string>        interactions; // Interaction::write_state(), names are DOFs
       std::vector<unsigned long long> owned_dof;
+      std::vector<double>             force; // 3 per owned old node
       std::vector<double>             x_old; // 3 per owned old node
     };
     /// The contact state before a new prepare() (empty at the first).
     Carried
     carry() const;
-    /// Puts what carry() kept back onto the new node and pair lists. Without it, every spring
-    /// compressed at a conversion lost its stored energy (the pair restarted with its present
-    /// penetration as the entry offset): most of the showcase's 1313 J of lost contact energy.
+    /// Puts what carry() kept back: forces and positions of the own nodes now, the interaction
+    /// states when the halo is built. Without it, every spring compressed at a conversion lost
+    /// its stored energy (the pair restarted with its present penetration as the entry offset):
+    /// most of the showcase's 1313 J of lost contact energy.
     void
     restore(const Carried &carried);
-    /// Reads the state of every interaction from @p states for the old nodes at @p where.
-    void
-    read_interactions(const std::vector<std::string> &states, const std::vector<int> &where,
-                      const NodeNaming &naming);
 
     void
     build_candidates(unsigned int step, double dt);

@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 /**
  * @file contact_nodes.h
- * @brief The contact nodes and segments every contact interaction works on (replicated on every
- * rank), their positions and velocities of the step, and how a contact state names its nodes
+ * @brief The contact nodes and segments every contact interaction works on (a rank's own and
+ * its halo, Contact), their positions and velocities of the step, and how a contact state names its nodes
  * when it moves to another node list.
  * @ingroup contact
  *
@@ -42,6 +42,10 @@ namespace shard::contact
     unsigned int body = 0;
     /// Whether it is a particle.
     bool particle = false;
+    /// Whether this rank owns it (Contact's halo holds nodes of other ranks): a pair is
+    /// evaluated on one rank only, the owner of its slave, of its particle of smaller DOF or of
+    /// its node against a wall.
+    bool owned = true;
   };
 
   /// A boundary face of an intact hexahedron: four contact node indices, counter-clockwise seen
@@ -54,8 +58,8 @@ namespace shard::contact
   };
 
   /**
-   * @brief The contact nodes and segments of all ranks and the state of the step: positions
-   * X + d and velocities, gathered at the exchange (Contact::exchange()).
+   * @brief The contact nodes and segments of a rank (its own and its halo) and the state of the
+   * step: positions X + d and velocities, set at the exchange (Contact::exchange()).
    */
   struct ContactNodes
   {

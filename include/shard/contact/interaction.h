@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <memory>
 #include <string>
 #include <utility>
@@ -147,9 +148,27 @@ namespace shard::contact
     virtual void
     reset(const ContactNodes &nodes) = 0;
 
-    /// Critical step of the stiffest penalty spring this interaction can make (s).
+    /// Critical step of the stiffest penalty spring this interaction can make (s), over the
+    /// nodes and segments of @p nodes (the smallest over the ranks is the step: every node and
+    /// segment is on its owner's list).
     virtual double
     stable_dt(const ContactNodes &nodes) const = 0;
+
+    /// How much deeper than the face spacing a candidate search reaches (m): the deepest
+    /// penetration a slave is followed to (node to surface), 0 for the others. The halo margin.
+    virtual double
+    search_depth() const
+    {
+      return 0.;
+    }
+
+    /// The largest value over all ranks of what is passed (Contact sets the reduction; the
+    /// identity on one rank): a stable step that needs the stiffest segment of every rank.
+    void
+    set_global_max(std::function<double(double)> global_max)
+    {
+      global_max_ = std::move(global_max);
+    }
 
     /// Builds the candidate lists from the positions of @p context.
     virtual void
@@ -182,8 +201,10 @@ namespace shard::contact
 
     /**
      * @brief Reads what write_state() wrote, after reset(): @p where gives the new index of
-     * every node of the writing list (-1 for a node that is gone); names are resolved by
-     * @p naming.index. The candidates are built afresh at the next step.
+     * every node of the writing list (-1 for a node that is gone or not this rank's to
+     * evaluate); names are resolved by @p naming.index. Several states (of several writing
+     * ranks) may be read one after the other: they add up. The candidates are built afresh at
+     * the next step.
      */
     virtual void
     read_state(base::BinaryReader &in, const ContactNodes &nodes, const std::vector<int> &where,
@@ -231,6 +252,7 @@ namespace shard::contact
 
     InteractionSettings settings_;
     bool                print_notices_ = true;
+    std::function<double(double)> global_max_ = [](const double x) { return x; };
   };
 
   /// The interaction of the type `settings.type_text` (node to surface, particles, rigid wall).

@@ -39,7 +39,12 @@ namespace shard::contact
     double
     stable_dt(const ContactNodes &nodes) const override;
 
-    /// The (slave, segment) pairs that can meet before the next build.
+    /// The deepest penetration of a slave in contact (m).
+    double
+    search_depth() const override;
+
+    /// The (slave, segment) pairs that can meet before the next build, for the slaves this
+    /// rank owns.
     void
     build(const SearchContext &context) override;
 

@@ -23,6 +23,7 @@ TEST(Traffic, MeanPerStepPerExchange)
   EXPECT_EQ(t.per_step(Traffic::contact_nodes), 160.);
   EXPECT_EQ(t.per_step(Traffic::bonds), 0.);
   EXPECT_EQ(Traffic::names()[Traffic::ghost_sums], "8 ghost sums");
+  EXPECT_EQ(Traffic::names()[Traffic::contact_forces], "8 contact forces");
 }
 
 TEST(Traffic, GatherToAllOthers)

@@ -373,3 +373,96 @@ TEST(NodeToSurface, SlaveOnAFaceGetsTheSpringAndTheCornersTheReaction)
       EXPECT_NEAR(sink.stored, 0.5 * fn * (g - g0), 1e-6 * fn * g);
     }
 }
+
+// Halo contact (issue 28): a pair is evaluated on one rank only. Node to surface: by the owner
+// of the slave; the segment's nodes may be halo nodes (their reactions go back to their owners).
+TEST(NodeToSurface, APairIsEvaluatedByTheOwnerOfItsSlave)
+{
+  const double L = 1e-2;
+  for (const bool slave_owned : {true, false})
+    {
+      ContactNodes nodes;
+      const double corners[4][2] = {{0, 0}, {L, 0}, {L, L}, {0, L}};
+      for (unsigned int a = 0; a < 4; ++a)
+        {
+          ContactNode n;
+          n.dof     = 3 * a;
+          n.X       = Vec3{{corners[a][0], corners[a][1], 0}};
+          n.mass    = 1;
+          n.bulk    = bulk;
+          n.spacing = L;
+          n.body    = 1;
+          n.owned   = false; // the face belongs to another rank
+          nodes.nodes.push_back(n);
+        }
+      ContactNode slave;
+      slave.dof     = 12;
+      slave.X       = Vec3{{0.5 * L, 0.5 * L, 0}};
+      slave.mass    = 1;
+      slave.bulk    = bulk;
+      slave.spacing = L;
+      slave.owned   = slave_owned;
+      nodes.nodes.push_back(slave);
+      ContactSegment face;
+      face.node      = {{0, 1, 2, 3}};
+      face.stiffness = bulk * L;
+      face.body      = 1;
+      nodes.segments = {face};
+      InteractionSettings settings;
+      settings.type_text   = "node to surface";
+      settings.bodies      = {0};
+      settings.target_body = 1;
+      settings.penalty     = penalty;
+      NodeToSurface contact(settings);
+      contact.set_print_notices(false);
+      contact.reset(nodes);
+      BondFilter bonds;
+      bonds.reset(nodes);
+      nodes.state.assign(ContactNodes::state_record * nodes.size(), 0.);
+      for (unsigned int i = 0; i < nodes.size(); ++i)
+        for (unsigned int c = 0; c < 3; ++c)
+          nodes.state[ContactNodes::state_record * i + c] = nodes.nodes[i].X[c];
+      nodes.state[ContactNodes::state_record * 4 + 2] = 1e-4; // above the face at the build
+      build_all(contact, nodes, bonds, 0.1 * L);
+      double pressed = 0;
+      // Enters 1e-8 deep (the entry offset), then pressed 1e-5 deep.
+      for (const double z : {-1e-8, -1e-5})
+        {
+          nodes.state[ContactNodes::state_record * 4 + 2] = z;
+          std::vector<double> force(3 * nodes.size(), 0.);
+          ForceSink           sink(force, 1e-3);
+          contact.add_forces(nodes, z == -1e-8 ? 1 : 2, 1e-9, sink);
+          pressed = force[3 * 4 + 2];
+          if (!slave_owned)
+            {
+              for (const double f : force)
+                EXPECT_EQ(f, 0.);
+            }
+        }
+      const double fn = penalty * face.stiffness * (1e-5 - 1e-8);
+      if (slave_owned)
+        {
+          EXPECT_NEAR(pressed, fn, 1e-6 * fn);
+        }
+    }
+}
+
+// Particles: by the owner of the particle of smaller DOF (the node list is sorted by DOF).
+TEST(ParticlePairs, APairIsEvaluatedByTheOwnerOfItsSmallerDof)
+{
+  for (const bool first_owned : {true, false})
+    {
+      ContactNodes nodes;
+      nodes.nodes = {particle(0, 0), particle(0.99 * spacing, 1)};
+      nodes.nodes[0].owned = first_owned;
+      nodes.nodes[1].owned = !first_owned;
+      set_state(nodes, {0, 0.99 * spacing}, {0, 0});
+      BondFilter bonds;
+      bonds.reset(nodes);
+      bonds.sync({}, {0, 1});
+      ParticlePairs pairs(particle_settings(0));
+      pairs.reset(nodes);
+      build_all(pairs, nodes, bonds, spacing);
+      EXPECT_EQ(pairs.candidates().size(), first_owned ? 1u : 0u);
+    }
+}
