@@ -496,40 +496,96 @@ namespace shard::contact
     const double segment_margin = 1.01 * (m[2] + m[3] + 2. * reach) + 1e-12;
     const double node_margin    = std::max(segment_margin + 1.01 * m[4], 1.01 * (2. * m[1] + 2. * reach) + 1e-12);
 
-    // Bounding box of this rank's nodes (empty: lo > hi, far from everything).
-    std::array<double, 6> box{{1e300, 1e300, 1e300, -1e300, -1e300, -1e300}};
+    // This rank's region: the tight boxes of its nodes in the cells of a grid (edge twice the
+    // node margin, or an eighth of the extent of its nodes if larger: at most 512 boxes). One
+    // box around all of them would hold most of another rank's nodes wherever the partition is
+    // not compact (a rank with cells at both ends of the block).
+    std::vector<double> boxes_mine; // 6 per box: lo, hi
+    std::vector<Vec3>   own_x(n_own);
     for (std::size_t k = 0; k < n_own; ++k)
-      for (unsigned int c = 0; c < 3; ++c)
-        {
-          box[c]     = std::min(box[c], own_state_[state_record * k + c]);
-          box[3 + c] = std::max(box[3 + c], own_state_[state_record * k + c]);
-        }
-    const auto boxes = P > 1 ? Utilities::MPI::all_gather(comm_, box) : std::vector<std::array<double, 6>>{box};
+      own_x[k] = Vec3{{own_state_[state_record * k], own_state_[state_record * k + 1], own_state_[state_record * k + 2]}};
+    if (n_own > 0)
+      {
+        Vec3 lo = own_x[0], hi = own_x[0];
+        for (const auto &x : own_x)
+          for (unsigned int c = 0; c < 3; ++c)
+            lo[c] = std::min(lo[c], x[c]), hi[c] = std::max(hi[c], x[c]);
+        const double extent = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+        const double edge   = std::max({2. * node_margin, extent / 8., 1e-300});
+        std::map<std::array<long, 3>, std::array<double, 6>> cells;
+        for (const auto &x : own_x)
+          {
+            std::array<long, 3> key;
+            for (unsigned int c = 0; c < 3; ++c)
+              key[c] = std::min(7L, static_cast<long>((x[c] - lo[c]) / edge));
+            auto it = cells.find(key);
+            if (it == cells.end())
+              it = cells.emplace(key, std::array<double, 6>{{x[0], x[1], x[2], x[0], x[1], x[2]}}).first;
+            for (unsigned int c = 0; c < 3; ++c)
+              it->second[c] = std::min(it->second[c], x[c]), it->second[3 + c] = std::max(it->second[3 + c], x[c]);
+          }
+        for (const auto &[key, bx] : cells)
+          boxes_mine.insert(boxes_mine.end(), bx.begin(), bx.end());
+      }
+    const auto boxes = P > 1 ? Utilities::MPI::all_gather(comm_, boxes_mine) : std::vector<std::vector<double>>{boxes_mine};
 
-    // What goes to each rank (this one included): own nodes near its box (record and state),
-    // own segments near its box (node DOFs, stiffness, body).
+    // What goes to each rank (this one included): own nodes near one of its boxes (record and
+    // state), own segments near one of its boxes (node DOFs, stiffness, body).
+    BinGrid node_grid, segment_grid;
+    if (n_own > 0)
+      node_grid.build(own_x, node_margin);
+    std::vector<Vec3> segment_centre(own_segments_.size());
+    for (std::size_t s = 0; s < own_segments_.size(); ++s)
+      for (unsigned int c = 0; c < 3; ++c)
+        segment_centre[s][c] = 0.5 * (segment_box[s][0][c] + segment_box[s][1][c]);
+    if (!own_segments_.empty())
+      segment_grid.build(segment_centre, segment_margin + m[4]);
     std::map<unsigned int, std::vector<double>> out;
     std::vector<std::vector<unsigned int>>      sent(P);
     std::vector<std::vector<double>>            segments_to(P);
+    std::vector<unsigned int>                   node_stamp(n_own, ~0u), segment_stamp(own_segments_.size(), ~0u);
     for (unsigned int r = 0; r < P; ++r)
       {
-        const double *lo = &boxes[r][0], *hi = &boxes[r][3];
-        if (lo[0] > hi[0])
-          continue;
-        for (std::size_t k = 0; k < n_own; ++k)
-          if (r == rank ||
-              box_distance(Vec3{{own_state_[state_record * k], own_state_[state_record * k + 1],
-                                 own_state_[state_record * k + 2]}},
-                           lo, hi) <= node_margin)
-            sent[r].push_back(static_cast<unsigned int>(k));
-        for (std::size_t s = 0; s < own_segments_.size(); ++s)
-          if (box_box_distance(segment_box[s][0], segment_box[s][1], lo, hi) <= segment_margin)
-            {
-              const auto &seg = own_segments_[s];
-              segments_to[r].insert(segments_to[r].end(), {double(seg.dof[0]), double(seg.dof[1]), double(seg.dof[2]),
-                                                           double(seg.dof[3]), seg.stiffness, double(seg.body)});
-            }
+        if (r == rank)
+          {
+            for (std::size_t k = 0; k < n_own; ++k)
+              sent[r].push_back(static_cast<unsigned int>(k));
+          }
+        for (std::size_t b = 0; b + 6 <= boxes[r].size(); b += 6)
+          {
+            const double *lo = &boxes[r][b], *hi = &boxes[r][b + 3];
+            if (r != rank && n_own > 0)
+              node_grid.for_each_in_box(Vec3{{lo[0] - node_margin, lo[1] - node_margin, lo[2] - node_margin}},
+                                        Vec3{{hi[0] + node_margin, hi[1] + node_margin, hi[2] + node_margin}},
+                                        [&](const unsigned int k) {
+                                          if (node_stamp[k] != r && box_distance(own_x[k], lo, hi) <= node_margin)
+                                            {
+                                              node_stamp[k] = r;
+                                              sent[r].push_back(k);
+                                            }
+                                        });
+            if (own_segments_.empty())
+              continue;
+            const double grow = segment_margin + 0.5 * m[4] * 1.01;
+            segment_grid.for_each_in_box(Vec3{{lo[0] - grow, lo[1] - grow, lo[2] - grow}},
+                                         Vec3{{hi[0] + grow, hi[1] + grow, hi[2] + grow}}, [&](const unsigned int g) {
+                                           if (segment_stamp[g] != r &&
+                                               box_box_distance(segment_box[g][0], segment_box[g][1], lo, hi) <=
+                                                 segment_margin)
+                                             {
+                                               segment_stamp[g] = r;
+                                               const auto &seg  = own_segments_[g];
+                                               segments_to[r].insert(segments_to[r].end(),
+                                                                     {double(seg.dof[0]), double(seg.dof[1]),
+                                                                      double(seg.dof[2]), double(seg.dof[3]),
+                                                                      seg.stiffness, double(seg.body)});
+                                             }
+                                         });
+          }
+        // The lists in own order (the receiver's positions are the order of arrival).
+        std::sort(sent[r].begin(), sent[r].end());
       }
+    // (Segments to a rank go in the order they were found; the receiver sorts them.)
     double bytes = 0;
     for (unsigned int r = 0; r < P; ++r)
       {
@@ -546,8 +602,8 @@ namespace shard::contact
         bytes += sizeof(double) * o.size();
       }
     const auto received = P > 1 ? Utilities::MPI::some_to_some(comm_, out) : std::map<unsigned int, std::vector<double>>();
-    // Boxes: 48 B to every other rank.
-    bytes += base::Traffic::to_all_others(sizeof(box), comm_);
+    // Boxes: 48 B each to every other rank.
+    bytes += base::Traffic::to_all_others(sizeof(double) * boxes_mine.size(), comm_);
 
     // The new node list: own and received nodes, sorted by DOF; segments sorted by their DOFs.
     struct Entry
