@@ -267,7 +267,7 @@ namespace shard::contact
     const auto &bodies = discretization.bodies();
     const auto &pt     = *discretization.partitioner();
     const auto &X      = discretization.reference_positions();
-    const unsigned int rank = Utilities::MPI::this_mpi_process(comm_);
+    reference_         = &X;
     std::map<unsigned long long, std::array<double, node_record>> mine; // by global DOF
     const auto bulk_of = [&](const unsigned int b) { return materials.get(bodies[b].material).elastic_moduli()[0]; };
     const auto add_node = [&](const types::global_dof_index g, const unsigned int b, const double h,
@@ -345,8 +345,7 @@ namespace shard::contact
                 const auto g = face->vertex_dof_index(order[v], 0);
                 seg.dof[v]   = g;
                 seg.local[v] = pt.global_to_local(g);
-                for (unsigned int c = 0; c < 3; ++c)
-                  seg.X[v][c] = face->vertex(order[v])[c];
+                seg.owner[v] = pt.in_local_range(g) ? Utilities::MPI::this_mpi_process(comm_) : owner_of(seg.local[v]);
                 if (pt.in_local_range(g))
                   add_node(g, b, h, false, Vec3{{0, 0, 0}});
                 else
@@ -367,7 +366,6 @@ namespace shard::contact
         for (std::size_t p = 0; p < list.size(); p += 3)
           add_node(static_cast<types::global_dof_index>(list[p]), static_cast<unsigned int>(list[p + 1]), list[p + 2],
                    false, Vec3{{0, 0, 0}});
-    (void)rank;
     own_.clear();
     owned_local_dof_.clear();
     for (const auto &[g, r] : mine)
@@ -479,7 +477,7 @@ namespace shard::contact
         for (unsigned int v = 0; v < 4; ++v)
           for (unsigned int c = 0; c < 3; ++c)
             {
-              const double x = seg.X[v][c] + d_->local_element(seg.local[v] + c);
+              const double x = reference_->local_element(seg.local[v] + c) + d_->local_element(seg.local[v] + c);
               lo[c]          = std::min(lo[c], x);
               hi[c]          = std::max(hi[c], x);
             }
@@ -490,11 +488,11 @@ namespace shard::contact
     if (P > 1)
       Utilities::MPI::max(ArrayView<const double>(m.data(), m.size()), comm_, ArrayView<double>(m.data(), m.size()));
     // Node to surface: a slave meets a segment within the face depth + penetration + both
-    // reaches of the segment's box; particles: within both radii and both reaches. A segment's
-    // nodes lie within its size of its box. 1 % and an absolute floor against round-off.
-    const double reach          = m[0];
-    const double segment_margin = 1.01 * (m[2] + m[3] + 2. * reach) + 1e-12;
-    const double node_margin    = std::max(segment_margin + 1.01 * m[4], 1.01 * (2. * m[1] + 2. * reach) + 1e-12);
+    // reaches of the segment's box (its nodes come with it); particles: within both radii and
+    // both reaches. 1 % and an absolute floor against round-off.
+    const double reach           = m[0];
+    const double segment_margin  = 1.01 * (m[2] + m[3] + 2. * reach) + 1e-12;
+    const double particle_margin = 1.01 * (2. * m[1] + 2. * reach) + 1e-12;
 
     // This rank's region: the tight boxes of its nodes in the cells of a grid (edge twice the
     // node margin, or an eighth of the extent of its nodes if larger: at most 512 boxes). One
@@ -511,7 +509,7 @@ namespace shard::contact
           for (unsigned int c = 0; c < 3; ++c)
             lo[c] = std::min(lo[c], x[c]), hi[c] = std::max(hi[c], x[c]);
         const double extent = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
-        const double edge   = std::max({2. * node_margin, extent / 8., 1e-300});
+        const double edge   = std::max({2. * std::max(segment_margin, particle_margin), extent / 8., 1e-300});
         std::map<std::array<long, 3>, std::array<double, 6>> cells;
         for (const auto &x : own_x)
           {
@@ -529,78 +527,113 @@ namespace shard::contact
       }
     const auto boxes = P > 1 ? Utilities::MPI::all_gather(comm_, boxes_mine) : std::vector<std::vector<double>>{boxes_mine};
 
-    // What goes to each rank (this one included): own nodes near one of its boxes (record and
-    // state), own segments near one of its boxes (node DOFs, stiffness, body).
+    // Round 1: own segments near one of a rank's boxes go to it (node DOFs, stiffness, body;
+    // this rank included), and the owners of their nodes are asked to send those nodes there.
     BinGrid node_grid, segment_grid;
     if (n_own > 0)
-      node_grid.build(own_x, node_margin);
+      node_grid.build(own_x, particle_margin);
     std::vector<Vec3> segment_centre(own_segments_.size());
     for (std::size_t s = 0; s < own_segments_.size(); ++s)
       for (unsigned int c = 0; c < 3; ++c)
         segment_centre[s][c] = 0.5 * (segment_box[s][0][c] + segment_box[s][1][c]);
     if (!own_segments_.empty())
       segment_grid.build(segment_centre, segment_margin + m[4]);
+    std::vector<std::vector<double>>                        segments_to(P);
+    std::vector<std::vector<std::pair<unsigned long long, unsigned int>>> requests_to(P); // (DOF, for rank)
+    std::vector<unsigned int> segment_stamp(own_segments_.size(), ~0u);
+    for (unsigned int r = 0; r < P; ++r)
+      for (std::size_t b = 0; b + 6 <= boxes[r].size() && !own_segments_.empty(); b += 6)
+        {
+          const double *lo = &boxes[r][b], *hi = &boxes[r][b + 3];
+          const double  grow = segment_margin + 0.5 * m[4] * 1.01;
+          segment_grid.for_each_in_box(
+            Vec3{{lo[0] - grow, lo[1] - grow, lo[2] - grow}}, Vec3{{hi[0] + grow, hi[1] + grow, hi[2] + grow}},
+            [&](const unsigned int g) {
+              if (segment_stamp[g] == r ||
+                  box_box_distance(segment_box[g][0], segment_box[g][1], lo, hi) > segment_margin)
+                return;
+              segment_stamp[g] = r;
+              const auto &seg  = own_segments_[g];
+              segments_to[r].insert(segments_to[r].end(), {double(seg.dof[0]), double(seg.dof[1]), double(seg.dof[2]),
+                                                           double(seg.dof[3]), seg.stiffness, double(seg.body)});
+              for (unsigned int v = 0; v < 4; ++v)
+                if (seg.owner[v] != r)
+                  requests_to[seg.owner[v]].emplace_back(seg.dof[v], r);
+            });
+        }
+    double bytes = 0;
     std::map<unsigned int, std::vector<double>> out;
-    std::vector<std::vector<unsigned int>>      sent(P);
-    std::vector<std::vector<double>>            segments_to(P);
-    std::vector<unsigned int>                   node_stamp(n_own, ~0u), segment_stamp(own_segments_.size(), ~0u);
+    for (unsigned int r = 0; r < P; ++r)
+      if (r != rank && (!segments_to[r].empty() || !requests_to[r].empty()))
+        {
+          auto &o = out[r];
+          o.push_back(double(segments_to[r].size() / 6));
+          o.insert(o.end(), segments_to[r].begin(), segments_to[r].end());
+          for (const auto &[g, to] : requests_to[r])
+            o.insert(o.end(), {double(g), double(to)});
+          bytes += sizeof(double) * o.size();
+        }
+    const auto first = P > 1 ? Utilities::MPI::some_to_some(comm_, out) : std::map<unsigned int, std::vector<double>>();
+
+    // Round 2: own nodes to each rank: those asked for (segment nodes) and the particles near
+    // one of its boxes (partners of particle pairs).
+    std::vector<std::vector<unsigned int>> sent(P);
+    std::vector<unsigned int>              node_stamp(n_own, ~0u);
+    const auto                             k_of = [&](const unsigned long long dof) {
+      const auto it = std::lower_bound(own_.begin(), own_.end(), dof,
+                                       [](const ContactNode &n, const unsigned long long g) { return n.dof < g; });
+      if (it == own_.end() || it->dof != dof)
+        throw std::logic_error("contact halo: a segment node is not a contact node of its owner");
+      return static_cast<unsigned int>(it - own_.begin());
+    };
+    std::vector<std::vector<unsigned int>> asked(P);
+    for (const auto &[g, to] : requests_to[rank])
+      asked[to].push_back(k_of(g));
+    for (const auto &[from, list] : first)
+      {
+        std::size_t p = 1 + 6 * static_cast<std::size_t>(list[0]);
+        for (; p + 2 <= list.size(); p += 2)
+          asked[static_cast<unsigned int>(list[p + 1])].push_back(k_of(static_cast<unsigned long long>(list[p])));
+      }
     for (unsigned int r = 0; r < P; ++r)
       {
         if (r == rank)
-          {
-            for (std::size_t k = 0; k < n_own; ++k)
-              sent[r].push_back(static_cast<unsigned int>(k));
-          }
-        for (std::size_t b = 0; b + 6 <= boxes[r].size(); b += 6)
+          continue;
+        for (const unsigned int k : asked[r])
+          if (node_stamp[k] != r)
+            {
+              node_stamp[k] = r;
+              sent[r].push_back(k);
+            }
+        for (std::size_t b = 0; b + 6 <= boxes[r].size() && n_own > 0; b += 6)
           {
             const double *lo = &boxes[r][b], *hi = &boxes[r][b + 3];
-            if (r != rank && n_own > 0)
-              node_grid.for_each_in_box(Vec3{{lo[0] - node_margin, lo[1] - node_margin, lo[2] - node_margin}},
-                                        Vec3{{hi[0] + node_margin, hi[1] + node_margin, hi[2] + node_margin}},
-                                        [&](const unsigned int k) {
-                                          if (node_stamp[k] != r && box_distance(own_x[k], lo, hi) <= node_margin)
-                                            {
-                                              node_stamp[k] = r;
-                                              sent[r].push_back(k);
-                                            }
-                                        });
-            if (own_segments_.empty())
-              continue;
-            const double grow = segment_margin + 0.5 * m[4] * 1.01;
-            segment_grid.for_each_in_box(Vec3{{lo[0] - grow, lo[1] - grow, lo[2] - grow}},
-                                         Vec3{{hi[0] + grow, hi[1] + grow, hi[2] + grow}}, [&](const unsigned int g) {
-                                           if (segment_stamp[g] != r &&
-                                               box_box_distance(segment_box[g][0], segment_box[g][1], lo, hi) <=
-                                                 segment_margin)
-                                             {
-                                               segment_stamp[g] = r;
-                                               const auto &seg  = own_segments_[g];
-                                               segments_to[r].insert(segments_to[r].end(),
-                                                                     {double(seg.dof[0]), double(seg.dof[1]),
-                                                                      double(seg.dof[2]), double(seg.dof[3]),
-                                                                      seg.stiffness, double(seg.body)});
-                                             }
-                                         });
+            node_grid.for_each_in_box(
+              Vec3{{lo[0] - particle_margin, lo[1] - particle_margin, lo[2] - particle_margin}},
+              Vec3{{hi[0] + particle_margin, hi[1] + particle_margin, hi[2] + particle_margin}},
+              [&](const unsigned int k) {
+                if (node_stamp[k] != r && own_[k].particle && box_distance(own_x[k], lo, hi) <= particle_margin)
+                  {
+                    node_stamp[k] = r;
+                    sent[r].push_back(k);
+                  }
+              });
           }
-        // The lists in own order (the receiver's positions are the order of arrival).
+        // In own order (the receiver's positions are the order of arrival).
         std::sort(sent[r].begin(), sent[r].end());
       }
-    // (Segments to a rank go in the order they were found; the receiver sorts them.)
-    double bytes = 0;
+    out.clear();
     for (unsigned int r = 0; r < P; ++r)
-      {
-        if (r == rank || (sent[r].empty() && segments_to[r].empty()))
-          continue;
-        auto &o = out[r];
-        o.push_back(double(sent[r].size()));
-        for (const unsigned int k : sent[r])
-          {
-            pack_node(own_[k], o);
-            o.insert(o.end(), &own_state_[state_record * k], &own_state_[state_record * k] + state_record);
-          }
-        o.insert(o.end(), segments_to[r].begin(), segments_to[r].end());
-        bytes += sizeof(double) * o.size();
-      }
+      if (r != rank && !sent[r].empty())
+        {
+          auto &o = out[r];
+          for (const unsigned int k : sent[r])
+            {
+              pack_node(own_[k], o);
+              o.insert(o.end(), &own_state_[state_record * k], &own_state_[state_record * k] + state_record);
+            }
+          bytes += sizeof(double) * o.size();
+        }
     const auto received = P > 1 ? Utilities::MPI::some_to_some(comm_, out) : std::map<unsigned int, std::vector<double>>();
     // Boxes: 48 B each to every other rank.
     bytes += base::Traffic::to_all_others(sizeof(double) * boxes_mine.size(), comm_);
@@ -616,23 +649,20 @@ namespace shard::contact
     std::vector<std::array<double, segment_record>> segment_records;
     for (std::size_t k = 0; k < n_own; ++k)
       entries.push_back({own_[k], &own_state_[state_record * k], rank, static_cast<unsigned int>(k)});
-    const auto take_segments = [&](const std::vector<double> &list, std::size_t p) {
-      for (; p + 6 <= list.size(); p += 6)
+    const auto take_segments = [&](const std::vector<double> &list, std::size_t p, const std::size_t end) {
+      for (; p + 6 <= end; p += 6)
         {
           std::array<double, segment_record> r{};
           std::copy_n(&list[p], 6, r.begin());
           segment_records.push_back(r);
         }
     };
-    take_segments(segments_to[rank], 0);
+    take_segments(segments_to[rank], 0, segments_to[rank].size());
+    for (const auto &[from, list] : first)
+      take_segments(list, 1, 1 + 6 * static_cast<std::size_t>(list[0]));
     for (const auto &[from, list] : received)
-      {
-        const auto count = static_cast<std::size_t>(list[0]);
-        std::size_t p     = 1;
-        for (std::size_t t = 0; t < count; ++t, p += node_record + state_record)
-          entries.push_back({unpack_node(&list[p]), &list[p + node_record], from, static_cast<unsigned int>(t)});
-        take_segments(list, p);
-      }
+      for (std::size_t p = 0, t = 0; p + node_record + state_record <= list.size(); p += node_record + state_record, ++t)
+        entries.push_back({unpack_node(&list[p]), &list[p + node_record], from, static_cast<unsigned int>(t)});
     std::sort(entries.begin(), entries.end(), [](const Entry &a, const Entry &b) { return a.node.dof < b.node.dof; });
 
     ContactNodes next;

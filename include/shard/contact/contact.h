@@ -287,15 +287,17 @@ namespace shard::contact
     std::vector<ContactNode>  own_;
     std::vector<unsigned int> owned_local_dof_;
     /// A surface face of one of this rank's cells: node DOFs (counter-clockwise from outside),
-    /// their local DOFs (owned or ghost) and reference positions, stiffness and body.
+    /// their local DOFs (owned or ghost) and owner ranks, stiffness and body.
     struct OwnSegment
     {
       std::array<unsigned long long, 4> dof{};
-      std::array<unsigned int, 4>       local{};
-      std::array<Vec3, 4>               X{};
+      std::array<unsigned int, 4>       local{}, owner{};
       double                            stiffness = 0;
       unsigned int                      body      = 0;
     };
+    /// Reference positions of the discretization (ghost values set): with d, the segments'
+    /// current positions.
+    const mesh::Vector *reference_ = nullptr;
     std::vector<OwnSegment> own_segments_;
     /// Current positions and velocities of the own nodes (6 per node).
     std::vector<double> own_state_;
