@@ -12,7 +12,7 @@ array) makes the test fail. Each such part on its own must stay at most --part-l
 0.75) of its 1-rank size on its largest rank (the partition balances work, not each part: in
 the weak-scaling unit one rank holds 0.68 of the elements), so that a small replicated part is
 caught too. The parts named by --replicated are the ones still replicated today
-(issue 28: the mesh, the contact node set): their ratios are printed, not judged, and the test
+(issue 28: the mesh; the contact node set was until the halo contact): their ratios are printed, not judged, and the test
 fails if one of them has become distributed (ratio <= L), so that the list is kept up to date.
 The resident-set entries are printed (they include about 150 MB of shared-library pages per
 process, the same at any rank count) and not judged.

@@ -61,8 +61,8 @@ namespace shard::contact
    * Parallel layout (doc/manual/contact.md, "Parallel"): every rank keeps its own contact nodes
    * and the segments of its cells, and a halo: the nodes and segments of other ranks that can
    * meet one of its nodes before the next candidate rebuild (within the largest reach of any
-   * node, the face depth and the deepest penetration, chosen by the bounding boxes of the
-   * ranks' nodes). Each pair is evaluated once, on the rank that owns its slave (node to
+   * node, the face depth and the deepest penetration, chosen by boxes around the ranks' nodes;
+   * a segment's nodes come with it). Each pair is evaluated once, on the rank that owns its slave (node to
    * surface), its particle of smaller DOF (particles) or its node (rigid wall); the forces on
    * halo nodes go back to their owners at the accumulate phase. The halo is rebuilt with the
    * candidates (the rebuild rule, decided for all ranks at once) and otherwise its positions
