@@ -30,7 +30,9 @@ namespace shard::output
   {
     // 2: the contact state carries the contact normals of node-to-surface slaves.
     // 3: the global state carries the FNV-1a hashes of history.csv and fragments.csv.
-    constexpr const char *magic = "shard checkpoint 6";
+    // 7: the contact state is the halo's (own and halo nodes, exchange lists; portable forces per
+    //    owned node), issue 28.
+    constexpr const char *magic = "shard checkpoint 7";
     using base::fnv1a;
 
     /// Writes @p data to @p path through `path.tmp`, fsync and rename. @p pause_half: test hook
