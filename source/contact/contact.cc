@@ -259,6 +259,62 @@ namespace shard::contact
     restore(carried);
   }
 
+  namespace
+  {
+    /// The static record of a node (node_record doubles; the set-up table of gather() and the
+    /// halo's messages).
+    void
+    pack_node(const ContactNode &n, std::vector<double> &out)
+    {
+      out.insert(out.end(), {double(n.dof), n.X[0], n.X[1], n.X[2], n.mass, n.radius, n.bulk, n.spacing,
+                             double(n.body), n.particle ? 1. : 0., n.support[0], n.support[1], n.support[2]});
+    }
+
+    /// The node of a record (not owned).
+    ContactNode
+    unpack_node(const double *a)
+    {
+      ContactNode n;
+      n.dof      = static_cast<unsigned long long>(a[0]);
+      n.X        = Vec3{{a[1], a[2], a[3]}};
+      n.mass     = a[4];
+      n.radius   = a[5];
+      n.bulk     = a[6];
+      n.spacing  = a[7];
+      n.body     = static_cast<unsigned int>(a[8]);
+      n.particle = a[9] > 0;
+      n.support  = Vec3{{a[10], a[11], a[12]}};
+      n.owned    = false;
+      return n;
+    }
+
+    /// Distance from @p x to the box [lo, hi] (0 inside).
+    double
+    box_distance(const Vec3 &x, const double *lo, const double *hi)
+    {
+      double d2 = 0;
+      for (unsigned int c = 0; c < 3; ++c)
+        {
+          const double e = std::max({lo[c] - x[c], 0., x[c] - hi[c]});
+          d2 += e * e;
+        }
+      return std::sqrt(d2);
+    }
+
+    /// Distance between the boxes [alo, ahi] and [blo, bhi] (0 where they overlap).
+    double
+    box_box_distance(const Vec3 &alo, const Vec3 &ahi, const double *blo, const double *bhi)
+    {
+      double d2 = 0;
+      for (unsigned int c = 0; c < 3; ++c)
+        {
+          const double e = std::max({blo[c] - ahi[c], 0., alo[c] - bhi[c]});
+          d2 += e * e;
+        }
+      return std::sqrt(d2);
+    }
+  } // namespace
+
   void
   Contact::gather(const mesh::Discretization &discretization, const materials::MaterialLibrary &materials,
                   const particles::ParticleSet &particles, const std::vector<bool> &converted_cells,
@@ -370,75 +426,12 @@ namespace shard::contact
     owned_local_dof_.clear();
     for (const auto &[g, r] : mine)
       {
-        ContactNode n;
-        n.dof      = static_cast<unsigned long long>(r[0]);
-        n.X        = Vec3{{r[1], r[2], r[3]}};
-        n.mass     = r[4];
-        n.radius   = r[5];
-        n.bulk     = r[6];
-        n.spacing  = r[7];
-        n.body     = static_cast<unsigned int>(r[8]);
-        n.particle = r[9] > 0;
-        n.support  = Vec3{{r[10], r[11], r[12]}};
-        n.owned    = true;
-        own_.push_back(n);
+        own_.push_back(unpack_node(r.data()));
+        own_.back().owned = true;
         owned_local_dof_.push_back(pt.global_to_local(g));
       }
   }
 
-  namespace
-  {
-    /// The static record of a node (node_record doubles).
-    void
-    pack_node(const ContactNode &n, std::vector<double> &out)
-    {
-      out.insert(out.end(), {double(n.dof), n.X[0], n.X[1], n.X[2], n.mass, n.radius, n.bulk, n.spacing,
-                             double(n.body), n.particle ? 1. : 0., n.support[0], n.support[1], n.support[2]});
-    }
-
-    ContactNode
-    unpack_node(const double *a)
-    {
-      ContactNode n;
-      n.dof      = static_cast<unsigned long long>(a[0]);
-      n.X        = Vec3{{a[1], a[2], a[3]}};
-      n.mass     = a[4];
-      n.radius   = a[5];
-      n.bulk     = a[6];
-      n.spacing  = a[7];
-      n.body     = static_cast<unsigned int>(a[8]);
-      n.particle = a[9] > 0;
-      n.support  = Vec3{{a[10], a[11], a[12]}};
-      n.owned    = false;
-      return n;
-    }
-
-    /// Distance from @p x to the box [lo, hi] (0 inside).
-    double
-    box_distance(const Vec3 &x, const double *lo, const double *hi)
-    {
-      double d2 = 0;
-      for (unsigned int c = 0; c < 3; ++c)
-        {
-          const double e = std::max({lo[c] - x[c], 0., x[c] - hi[c]});
-          d2 += e * e;
-        }
-      return std::sqrt(d2);
-    }
-
-    /// Distance between the boxes [alo, ahi] and [blo, bhi] (0 where they overlap).
-    double
-    box_box_distance(const Vec3 &alo, const Vec3 &ahi, const double *blo, const double *bhi)
-    {
-      double d2 = 0;
-      for (unsigned int c = 0; c < 3; ++c)
-        {
-          const double e = std::max({blo[c] - ahi[c], 0., alo[c] - bhi[c]});
-          d2 += e * e;
-        }
-      return std::sqrt(d2);
-    }
-  } // namespace
 
   void
   Contact::copy_own_states()
@@ -738,30 +731,13 @@ namespace shard::contact
       }
     else
       {
-        std::vector<std::string> states;
-        NodeNaming               naming;
-        naming.name = [&](const unsigned int i) { return nodes_.nodes[i].dof; };
-        for (const auto &in : interactions_)
-          {
-            base::BinaryWriter w;
-            in->write_state(w, nodes_, naming);
-            states.push_back(w.str());
-          }
-        std::vector<int> where(nodes_.size(), -1);
-        for (std::size_t i = 0; i < nodes_.size(); ++i)
-          if (nodes_.nodes[i].owned)
-            where[i] = static_cast<int>(index_of.at(nodes_.nodes[i].dof));
+        // Written by DOF and read into the new list like a conversion's states. (pending_ is
+        // empty here: it is set only after prepare() emptied the node list.)
+        if (!nodes_.nodes.empty())
+          pending_ = written_states();
         nodes_ = std::move(next);
-        naming.index = [&](const unsigned long long dof) {
-          const auto it = index_of.find(dof);
-          return it == index_of.end() ? -1 : static_cast<int>(it->second);
-        };
-        for (std::size_t s = 0; s < interactions_.size(); ++s)
-          {
-            interactions_[s]->reset(nodes_);
-            base::BinaryReader in(states[s]);
-            interactions_[s]->read_state(in, nodes_, where, naming);
-          }
+        for (auto &in : interactions_)
+          in->reset(nodes_);
         bonds_.reset(nodes_);
         bonds_.sync(particles_->broken_bonds(), particles_->free_particles());
         read_pending();
@@ -816,27 +792,37 @@ namespace shard::contact
     pending_ = Pending();
   }
 
-  Contact::Carried
-  Contact::carry() const
+  Contact::Pending
+  Contact::written_states() const
   {
-    Carried c;
-    if (own_.empty() && nodes_.nodes.empty())
-      return c;
-    if (interactions_.empty())
-      return c;
+    Pending p;
+    p.dofs.emplace_back();
+    p.owned.emplace_back();
     for (const auto &n : nodes_.nodes)
       {
-        c.dof.push_back(n.dof);
-        c.owned.push_back(n.owned);
+        p.dofs.back().push_back(n.dof);
+        p.owned.back().push_back(n.owned);
       }
     NodeNaming naming;
     naming.name = [&](const unsigned int i) { return nodes_.nodes[i].dof; };
+    p.interactions.emplace_back();
     for (const auto &in : interactions_)
       {
         base::BinaryWriter w;
         in->write_state(w, nodes_, naming);
-        c.interactions.push_back(w.str());
+        p.interactions.back().push_back(w.str());
       }
+    p.dof_of_name = [](const unsigned long long dof) { return dof; };
+    return p;
+  }
+
+  Contact::Carried
+  Contact::carry() const
+  {
+    Carried c;
+    if (interactions_.empty())
+      return c;
+    c.states = written_states();
     for (std::size_t k = 0; k < own_.size() && 3 * k < x_old_.size(); ++k)
       {
         c.owned_dof.push_back(own_[k].dof);
@@ -849,15 +835,10 @@ namespace shard::contact
   void
   Contact::restore(const Carried &c)
   {
-    if (c.interactions.size() != interactions_.size())
+    if (c.states.interactions.empty() || c.states.interactions.front().size() != interactions_.size())
       return;
-    if (!c.dof.empty())
-      {
-        pending_.dofs         = {c.dof};
-        pending_.owned        = {c.owned};
-        pending_.interactions = {c.interactions};
-        pending_.dof_of_name  = [](const unsigned long long dof) { return dof; };
-      }
+    if (!c.states.dofs.front().empty())
+      pending_ = c.states;
     // Forces and positions of the last step of this rank's nodes; a node new to the contact
     // has none (NaN: no work booked for it in the next step, when its force is still 0 from its
     // entry offset).

@@ -352,14 +352,16 @@ namespace shard::contact
     /// Reads pending_ into the interactions (after the halo of the new node list is built).
     void
     read_pending();
+    /// The interactions' states of the present node list, named by DOF (one writer): what a
+    /// conversion and a change of the halo carry over to the next node list.
+    Pending
+    written_states() const;
 
     /// What a second prepare() (after a conversion) keeps of the contacts that go on, by global
     /// DOF: the DOFs do not change in a conversion, the node indices do.
     struct Carried
     {
-      std::vector<unsigned long long> dof;          // per old node of nodes_
-      std::vector<unsigned char>      owned;        // per old node
-      std::vector<std::string>        interactions; // Interaction::write_state(), names are DOFs
+      Pending                         states; // written_states() of the old node list
       std::vector<unsigned long long> owned_dof;
       std::vector<double>             force; // 3 per owned old node
       std::vector<double>             x_old; // 3 per owned old node

@@ -135,6 +135,33 @@ namespace
     c.momentum_after = mass * (v[0] + v[1]);
     return c;
   }
+
+  /// Nodes 0-3: a face of body 1 (the target) in the plane z = 0, edge @p L, counter-clockwise
+  /// seen from +z, stiffness K A^2 / V of a cube of edge L; node 4: a slave of body 0 at the
+  /// face's centre. Unit masses.
+  ContactNodes
+  face_and_slave(const double L)
+  {
+    ContactNodes nodes;
+    const double xy[5][2] = {{0, 0}, {L, 0}, {L, L}, {0, L}, {0.5 * L, 0.5 * L}};
+    for (unsigned int a = 0; a < 5; ++a)
+      {
+        ContactNode n;
+        n.dof     = 3 * a;
+        n.X       = Vec3{{xy[a][0], xy[a][1], 0}};
+        n.mass    = 1;
+        n.bulk    = bulk;
+        n.spacing = L;
+        n.body    = a < 4 ? 1 : 0;
+        nodes.nodes.push_back(n);
+      }
+    ContactSegment face;
+    face.node      = {{0, 1, 2, 3}};
+    face.stiffness = bulk * L;
+    face.body      = 1;
+    nodes.segments = {face};
+    return nodes;
+  }
 } // namespace
 
 // Elastic collision (no dashpot): a linear spring k = s K h between two masses m, reduced mass
@@ -292,34 +319,9 @@ TEST(RigidWall, SpringForceAlongTheNormal)
 // the reaction on each corner of the face (the forces balance).
 TEST(NodeToSurface, SlaveOnAFaceGetsTheSpringAndTheCornersTheReaction)
 {
-  ContactNodes nodes;
-  const double L = 1e-2;
-  // Face of body 1 (target) in the plane z = 0, counter-clockwise seen from +z.
-  const double corners[4][2] = {{0, 0}, {L, 0}, {L, L}, {0, L}};
-  for (unsigned int a = 0; a < 4; ++a)
-    {
-      ContactNode n;
-      n.dof     = 3 * a;
-      n.X       = Vec3{{corners[a][0], corners[a][1], 0}};
-      n.mass    = 1;
-      n.bulk    = bulk;
-      n.spacing = L;
-      n.body    = 1;
-      nodes.nodes.push_back(n);
-    }
-  ContactNode slave;
-  slave.dof     = 12;
-  slave.X       = Vec3{{0.5 * L, 0.5 * L, 0}};
-  slave.mass    = 1;
-  slave.bulk    = bulk;
-  slave.spacing = L;
-  slave.body    = 0;
-  nodes.nodes.push_back(slave);
-  ContactSegment face;
-  face.node      = {{0, 1, 2, 3}};
-  face.stiffness = bulk * L; // K A^2 / V for a cube of edge L
-  face.body      = 1;
-  nodes.segments = {face};
+  const double L     = 1e-2;
+  ContactNodes nodes = face_and_slave(L);
+  const auto  &face  = nodes.segments[0];
   const auto place = [&](const double z) {
     nodes.state.assign(ContactNodes::state_record * nodes.size(), 0.);
     for (unsigned int i = 0; i < nodes.size(); ++i)
@@ -381,33 +383,11 @@ TEST(NodeToSurface, APairIsEvaluatedByTheOwnerOfItsSlave)
   const double L = 1e-2;
   for (const bool slave_owned : {true, false})
     {
-      ContactNodes nodes;
-      const double corners[4][2] = {{0, 0}, {L, 0}, {L, L}, {0, L}};
+      ContactNodes nodes = face_and_slave(L);
       for (unsigned int a = 0; a < 4; ++a)
-        {
-          ContactNode n;
-          n.dof     = 3 * a;
-          n.X       = Vec3{{corners[a][0], corners[a][1], 0}};
-          n.mass    = 1;
-          n.bulk    = bulk;
-          n.spacing = L;
-          n.body    = 1;
-          n.owned   = false; // the face belongs to another rank
-          nodes.nodes.push_back(n);
-        }
-      ContactNode slave;
-      slave.dof     = 12;
-      slave.X       = Vec3{{0.5 * L, 0.5 * L, 0}};
-      slave.mass    = 1;
-      slave.bulk    = bulk;
-      slave.spacing = L;
-      slave.owned   = slave_owned;
-      nodes.nodes.push_back(slave);
-      ContactSegment face;
-      face.node      = {{0, 1, 2, 3}};
-      face.stiffness = bulk * L;
-      face.body      = 1;
-      nodes.segments = {face};
+        nodes.nodes[a].owned = false; // the face belongs to another rank
+      nodes.nodes[4].owned = slave_owned;
+      const auto &face     = nodes.segments[0];
       InteractionSettings settings;
       settings.type_text   = "node to surface";
       settings.bodies      = {0};
