@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/base/binary_archive.h>
+#include <shard/base/region_boxes.h>
 #include <shard/base/sections.h>
 #include <shard/base/traffic.h>
 #include <shard/contact/contact.h>
@@ -491,33 +492,11 @@ namespace shard::contact
     // node margin, or an eighth of the extent of its nodes if larger: at most 512 boxes). One
     // box around all of them would hold most of another rank's nodes wherever the partition is
     // not compact (a rank with cells at both ends of the block).
-    std::vector<double> boxes_mine; // 6 per box: lo, hi
-    std::vector<Vec3>   own_x(n_own);
+    std::vector<Vec3> own_x(n_own);
     for (std::size_t k = 0; k < n_own; ++k)
       own_x[k] = Vec3{{own_state_[state_record * k], own_state_[state_record * k + 1], own_state_[state_record * k + 2]}};
-    if (n_own > 0)
-      {
-        Vec3 lo = own_x[0], hi = own_x[0];
-        for (const auto &x : own_x)
-          for (unsigned int c = 0; c < 3; ++c)
-            lo[c] = std::min(lo[c], x[c]), hi[c] = std::max(hi[c], x[c]);
-        const double extent = std::max({hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
-        const double edge   = std::max({2. * std::max(segment_margin, particle_margin), extent / 8., 1e-300});
-        std::map<std::array<long, 3>, std::array<double, 6>> cells;
-        for (const auto &x : own_x)
-          {
-            std::array<long, 3> key;
-            for (unsigned int c = 0; c < 3; ++c)
-              key[c] = std::min(7L, static_cast<long>((x[c] - lo[c]) / edge));
-            auto it = cells.find(key);
-            if (it == cells.end())
-              it = cells.emplace(key, std::array<double, 6>{{x[0], x[1], x[2], x[0], x[1], x[2]}}).first;
-            for (unsigned int c = 0; c < 3; ++c)
-              it->second[c] = std::min(it->second[c], x[c]), it->second[3 + c] = std::max(it->second[3 + c], x[c]);
-          }
-        for (const auto &[key, bx] : cells)
-          boxes_mine.insert(boxes_mine.end(), bx.begin(), bx.end());
-      }
+    const std::vector<double> boxes_mine =
+      base::RegionBoxes(own_x, 2. * std::max(segment_margin, particle_margin)).boxes; // 6 per box: lo, hi
     const auto boxes = P > 1 ? Utilities::MPI::all_gather(comm_, boxes_mine) : std::vector<std::vector<double>>{boxes_mine};
 
     // Round 1: own segments near one of a rank's boxes go to it (node DOFs, stiffness, body;

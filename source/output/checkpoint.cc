@@ -32,7 +32,9 @@ namespace shard::output
     // 3: the global state carries the FNV-1a hashes of history.csv and fragments.csv.
     // 7: the contact state is the halo's (own and halo nodes, exchange lists; portable forces per
     //    owned node), issue 28.
-    constexpr const char *magic = "shard checkpoint 7";
+    // 8: each rank writes the broken bonds and free particles it knows of (no global list),
+    //    issue 28.
+    constexpr const char *magic = "shard checkpoint 8";
     using base::fnv1a;
 
     /// Writes @p data to @p path through `path.tmp`, fsync and rename. @p pause_half: test hook

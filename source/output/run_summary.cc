@@ -59,6 +59,11 @@ namespace shard::output
       j << "  \"conversion_energy\": " << number(s.conversion_energy) << ",\n";
       j << "  \"broken_bonds\": " << s.broken_bonds << ",\n";
       j << "  \"free_particles\": " << s.free_particles << ",\n";
+      if (s.broken_bonds + s.free_particles > 0 && !s.known_broken_bonds_by_rank.empty())
+        {
+          j << "  \"known_broken_bonds_by_rank\": " << list(s.known_broken_bonds_by_rank) << ",\n";
+          j << "  \"known_free_particles_by_rank\": " << list(s.known_free_particles_by_rank) << ",\n";
+        }
       j << "  \"contact_rebuilds\": " << s.contact_rebuilds << ",\n";
       if (s.fragments.count > 0)
         {

@@ -1,7 +1,6 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/base/sections.h>
 #include <shard/base/tensor.h>
-#include <shard/base/traffic.h>
 #include <shard/particles/bond_failure.h>
 
 #include <deal.II/base/mpi.h>
@@ -29,21 +28,6 @@ namespace shard::particles
       if (text == "principal strain")
         return BondCriterion::principal_strain;
       return BondCriterion::none;
-    }
-
-    /// Gathers the lists of all ranks into one sorted list without duplicates; adds the bytes
-    /// this rank sent to @p bytes.
-    template <typename T>
-    std::vector<T>
-    gather_sorted(const MPI_Comm comm, const std::vector<T> &mine, double &bytes)
-    {
-      bytes += base::Traffic::to_all_others(sizeof(T) * mine.size(), comm);
-      std::vector<T> all;
-      for (const auto &part : Utilities::MPI::all_gather(comm, mine))
-        all.insert(all.end(), part.begin(), part.end());
-      std::sort(all.begin(), all.end());
-      all.erase(std::unique(all.begin(), all.end()), all.end());
-      return all;
     }
   } // namespace
 
@@ -308,20 +292,14 @@ namespace shard::particles
       if (has_bonds_[i] && volume_ratio_[i] > 0 && spg.jacobian(i) < volume_ratio_[i])
         crushed.push_back(particles.compact_id(i));
 
-    // 3. One list on every rank. 4. Free particles, until none is added.
+    // 3. The bonds to the ranks that hold their rows (ParticleSet::spread_bonds: the owners of
+    // both ends, then the ranks that hold those particles). 4. Free particles, until none is
+    // added, told to the ranks that hold them.
     unsigned long long n_bonds = 0, n_freed = 0;
     if (Utilities::MPI::sum(static_cast<unsigned long long>(bonds.size() + crushed.size()), comm) > 0)
       {
-        const auto all  = gather_sorted(comm, bonds, bytes_sent_);
-        const auto before = particles.broken_bonds().size();
-        particles.break_bonds(all);
-        const auto all_crushed = gather_sorted(comm, crushed, bytes_sent_);
-        if (!all_crushed.empty())
-          {
-            particles.break_bonds({}, all_crushed);
-            n_freed += all_crushed.size();
-          }
-        n_bonds = particles.broken_bonds().size() - before;
+        n_bonds = Utilities::MPI::sum(particles.spread_bonds(comm, bonds, bytes_sent_), comm);
+        n_freed = particles.spread_free(comm, crushed, bytes_sent_);
         while (true)
           {
             std::vector<unsigned long long> freed;
@@ -338,10 +316,9 @@ namespace shard::particles
               }
             if (Utilities::MPI::sum(static_cast<unsigned long long>(freed.size()), comm) == 0)
               break;
-            const auto all_freed = gather_sorted(comm, freed, bytes_sent_);
-            particles.break_bonds({}, all_freed);
-            n_freed += all_freed.size();
+            n_freed += particles.spread_free(comm, freed, bytes_sent_);
           }
+        n_freed = Utilities::MPI::sum(n_freed, comm);
       }
     n_broken_ += n_bonds;
     n_free_ += n_freed;

@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
+#include <shard/base/region_boxes.h>
 #include <shard/base/sections.h>
 #include <shard/fe/hex_kernel.h>
 #include <shard/particles/particle_set.h>
@@ -168,43 +169,93 @@ namespace shard::particles
         nodal.flag.local_element(j + 1) = intact.local_element(j);
     }
 
-    /// Connected components of the converted cells (through shared nodes).
+    /// Connected components of the converted cells (through shared nodes), by node label.
     struct Components
     {
-      /// Union-find parents by global node id.
-      std::map<std::uint64_t, std::uint64_t> parent;
-      /// Component index by root, numbered in the order of the roots.
-      std::map<std::uint64_t, unsigned int> component_of_root;
+      /// Per local entry (owned and ghost, 3 per node, component 0 used): the smallest root of
+      /// this rank's own union-find among the ranks whose converted cells touch the node.
+      mesh::Vector label;
+      /// Union-find over the roots of all ranks that meet at shared nodes (the same on every
+      /// rank; small: only components that reach a rank boundary have entries).
+      std::map<std::uint64_t, std::uint64_t> joined;
+      /// Index of every final root in ascending order (the same on every rank).
+      std::vector<std::uint64_t> roots;
+
+      /// Component index of the particle at local node entry @p j.
+      unsigned int
+      of(const unsigned int j)
+      {
+        auto r = static_cast<std::uint64_t>(label.local_element(j));
+        if (joined.count(r))
+          r = find_root(joined, r);
+        return std::lower_bound(roots.begin(), roots.end(), r) - roots.begin();
+      }
     };
 
-    /// The connected components of the converted cells of all ranks (8 node ids per cell in
-    /// @p cell_nodes). The label is the smallest global node id, so it does not depend on the
-    /// partition. @note Collective.
+    /// The connected components of the converted cells of all ranks (8 node ids per owned cell
+    /// in @p cell_nodes). The label is the smallest global node id, so it does not depend on the
+    /// partition. Each rank joins its own cells; the ranks' roots meet at the shared nodes (one
+    /// min-compress of a nodal vector), and only the pairs of roots that meet there are
+    /// all-gathered. @note Collective.
     Components
-    connect_components(MPI_Comm comm, const std::vector<std::uint64_t> &cell_nodes)
+    connect_components(const mesh::Discretization &discretization, const std::vector<std::uint64_t> &cell_nodes)
     {
-      Components out;
-      auto      &parent = out.parent;
-      for (const auto &part : Utilities::MPI::all_gather(comm, cell_nodes))
-        for (std::size_t c = 0; c < part.size(); c += 8)
-          {
-            for (unsigned int v = 0; v < 8; ++v)
-              parent.emplace(part[c + v], part[c + v]);
-            for (unsigned int v = 1; v < 8; ++v)
-              {
-                const auto a = find_root(parent, part[c]), b = find_root(parent, part[c + v]);
-                if (a != b)
-                  parent[std::max(a, b)] = std::min(a, b);
-              }
-          }
-      for (auto &[node, p] : parent)
+      const MPI_Comm comm = discretization.communicator();
+      const auto    &pt   = *discretization.partitioner();
+      Components     out;
+      std::map<std::uint64_t, std::uint64_t> parent;
+      for (std::size_t c = 0; c < cell_nodes.size(); c += 8)
         {
-          const auto r = find_root(parent, node);
-          out.component_of_root.emplace(r, 0);
+          for (unsigned int v = 0; v < 8; ++v)
+            parent.emplace(cell_nodes[c + v], cell_nodes[c + v]);
+          for (unsigned int v = 1; v < 8; ++v)
+            {
+              const auto a = find_root(parent, cell_nodes[c]), b = find_root(parent, cell_nodes[c + v]);
+              if (a != b)
+                parent[std::max(a, b)] = std::min(a, b);
+            }
         }
-      unsigned int c = 0;
-      for (auto &[root, index] : out.component_of_root)
-        index = c++;
+      // Node ids are below 2^53, exact as doubles.
+      constexpr double none = 1e300;
+      out.label.reinit(discretization.partitioner());
+      for (unsigned int j = 0; j < pt.locally_owned_size() + pt.n_ghost_indices(); ++j)
+        out.label.local_element(j) = none;
+      for (const auto &[node, p] : parent)
+        {
+          const unsigned int j       = pt.global_to_local(3 * node);
+          out.label.local_element(j) = std::min(out.label.local_element(j), double(find_root(parent, node)));
+        }
+      out.label.compress(VectorOperation::min);
+      out.label.update_ghost_values();
+      // Roots that meet another rank's at a shared node: pairs (larger, smaller).
+      std::vector<std::uint64_t> pairs, mine;
+      for (const auto &[node, p] : parent)
+        {
+          const std::uint64_t r = find_root(parent, node);
+          const double        l = out.label.local_element(pt.global_to_local(3 * node));
+          if (l < double(r))
+            pairs.push_back(r), pairs.push_back(static_cast<std::uint64_t>(l));
+          if (node == r)
+            mine.push_back(r);
+        }
+      for (const auto &part : Utilities::MPI::all_gather(comm, pairs))
+        for (std::size_t t = 0; t + 1 < part.size(); t += 2)
+          {
+            out.joined.emplace(part[t], part[t]);
+            out.joined.emplace(part[t + 1], part[t + 1]);
+            const auto a = find_root(out.joined, part[t]), b = find_root(out.joined, part[t + 1]);
+            if (a != b)
+              out.joined[std::max(a, b)] = std::min(a, b);
+          }
+      // Final roots: the own roots not joined to a smaller one.
+      std::vector<std::uint64_t> final_roots;
+      for (const auto r : mine)
+        if (!out.joined.count(r) || find_root(out.joined, r) == r)
+          final_roots.push_back(r);
+      for (const auto &part : Utilities::MPI::all_gather(comm, final_roots))
+        out.roots.insert(out.roots.end(), part.begin(), part.end());
+      std::sort(out.roots.begin(), out.roots.end());
+      out.roots.erase(std::unique(out.roots.begin(), out.roots.end()), out.roots.end());
       return out;
     }
 
@@ -236,16 +287,17 @@ namespace shard::particles
               interface ? 1. : nodal.flag.local_element(j),
               nodal.flag.local_element(j + 2) - 1,
               interface ? 1. : 0.,
-              double(components.component_of_root.at(find_root(components.parent, id)))};
+              double(components.of(j))};
             mine.insert(mine.end(), row, row + record);
           }
       return mine;
     }
 
-    /// The particle table of all ranks, sorted by global id.
+    /// The particles this rank builds its stencils from: its own and those of other ranks
+    /// within two support radii (the two hops of the stencils), sorted by id.
     struct ParticleTable
     {
-      /// The rows of every rank (rows point into them).
+      /// The rows of this rank and those received (rows point into them).
       std::vector<std::vector<double>> all;
       /// Row of every particle, by global id.
       std::vector<const double *> rows;
@@ -253,13 +305,39 @@ namespace shard::particles
       std::vector<unsigned char> owned;
     };
 
-    /// Gathers the rows @p mine of every rank into one table sorted by id. @note Collective.
+    /// The rows @p mine and those of other ranks within @p reach (max-norm) of this rank's
+    /// particles, as one table sorted by id. Each rank all-gathers the tight boxes of its
+    /// particles in the cells of a grid (base/region_boxes.h) and sends every row within
+    /// @p reach of a box of another rank to that rank, point to point. @note Collective.
     ParticleTable
-    gather_table(MPI_Comm comm, const std::vector<double> &mine)
+    halo_table(MPI_Comm comm, const std::vector<double> &mine, const double reach)
     {
       const unsigned int rank = Utilities::MPI::this_mpi_process(comm);
+      const unsigned int P    = Utilities::MPI::n_mpi_processes(comm);
       ParticleTable      out;
-      out.all = Utilities::MPI::all_gather(comm, mine);
+      out.all.push_back(mine);
+      if (P > 1)
+        {
+          const std::size_t           n = mine.size() / record;
+          std::vector<base::Point>    x(n);
+          for (std::size_t p = 0; p < n; ++p)
+            x[p] = base::Point{{mine[record * p + f_x], mine[record * p + f_x + 1], mine[record * p + f_x + 2]}};
+          const base::RegionBoxes own(x, 2. * reach);
+          const auto              boxes = Utilities::MPI::all_gather(comm, own.boxes);
+          std::map<unsigned int, std::vector<double>> out_rows;
+          for (unsigned int r = 0; r < P; ++r)
+            if (r != rank)
+              {
+                std::vector<double> &to = out_rows[r];
+                own.for_each_near(boxes[r], reach, [&](const std::size_t p) {
+                  to.insert(to.end(), &mine[record * p], &mine[record * p] + record);
+                });
+                if (to.empty())
+                  out_rows.erase(r);
+              }
+          for (auto &[from, rows] : Utilities::MPI::some_to_some(comm, out_rows))
+            out.all.push_back(std::move(rows));
+        }
       struct Entry
       {
         const double *row;
@@ -268,7 +346,7 @@ namespace shard::particles
       std::vector<Entry> table;
       for (unsigned int r = 0; r < out.all.size(); ++r)
         for (std::size_t p = 0; p < out.all[r].size(); p += record)
-          table.push_back({&out.all[r][p], r == rank});
+          table.push_back({&out.all[r][p], r == 0});
       std::sort(table.begin(), table.end(), [](const Entry &a, const Entry &b) { return a.row[f_id] < b.row[f_id]; });
       for (const auto &entry : table)
         {
@@ -357,12 +435,21 @@ namespace shard::particles
 
     NodalFields nodal(discretization.partitioner());
     sum_nodal_fields(discretization, converted_cells, interpolating_faces, nodal);
-    Components components = connect_components(comm, nodal.cell_nodes);
-    n_components_         = components.component_of_root.size();
+    Components components = connect_components(discretization, nodal.cell_nodes);
+    n_components_         = components.roots.size();
 
-    // The table of this rank's particles, then of all ranks.
-    const ParticleTable table = gather_table(comm, particle_rows(discretization, nodal, components));
-    n_global_                 = table.rows.size();
+    // The table of this rank's particles and of those within two support radii (the stencils'
+    // two hops); no rank holds all particles.
+    const std::vector<double> mine = particle_rows(discretization, nodal, components);
+    double                    largest_radius = 0;
+    for (std::size_t p = 0; p < mine.size(); p += record)
+      {
+        const Point3 r = rk_.support_radius(Point3{{mine[p + f_h], mine[p + f_h + 1], mine[p + f_h + 2]}});
+        largest_radius = std::max({largest_radius, r[0], r[1], r[2]});
+      }
+    largest_radius            = Utilities::MPI::max(largest_radius, comm);
+    const ParticleTable table = halo_table(comm, mine, 2.02 * largest_radius + 1e-12);
+    n_global_                 = Utilities::MPI::sum(static_cast<unsigned long long>(mine.size() / record), comm);
     ParticleCloud             cloud;
     std::vector<unsigned int> owned;
     fill_cloud(table, cloud, owned);
@@ -377,6 +464,14 @@ namespace shard::particles
     add_two_hop_ghosts(discretization, table.rows);
     set_compact_arrays(cloud, table.rows);
     set_owned_arrays(table.rows, owned);
+    // Bonds broken before this rebuild (conversion, restart) stay broken: the ranks that hold
+    // a particle for the first time hear of its bonds, then the rows are rebuilt.
+    set_targets(discretization);
+    tell_targets(comm, restarting_);
+    restarting_      = false;
+    prepared_broken_ = broken_;
+    prepared_free_   = free_;
+    rebuild_broken_rows();
     report_fallback(comm, cloud);
   }
 
@@ -460,7 +555,6 @@ namespace shard::particles
       a_identity_[j] = cloud.interpolating[stencils_.cloud_index[j]];
     a_intact_.assign(stencils_.a.n_entries(), 1);
     g_intact_.assign(stencils_.g.n_entries(), 1);
-    rebuild_broken_rows();
   }
 
   void
@@ -533,10 +627,70 @@ namespace shard::particles
   }
 
   void
-  ParticleSet::mark_broken(const std::vector<Bond> &bonds, const std::vector<unsigned long long> &free_ids,
-                           std::vector<unsigned int> &a_rows, std::vector<unsigned int> &g_rows)
+  ParticleSet::set_targets(const mesh::Discretization &discretization)
   {
     constexpr unsigned int none = ~0u;
+    const auto            &pt   = *discretization.partitioner();
+    const unsigned int     rank = Utilities::MPI::this_mpi_process(discretization.communicator());
+    const unsigned int     n_owned_dofs = pt.locally_owned_size();
+    // Owner of every compact coefficient: this rank, or the rank its ghost index comes from.
+    std::vector<unsigned int> ghost_end, ghost_rank;
+    unsigned int              end = 0;
+    for (const auto &[r, count] : pt.ghost_targets())
+      {
+        end += count;
+        ghost_end.push_back(end);
+        ghost_rank.push_back(r);
+      }
+    compact_owner_.resize(stencils_.n_k);
+    for (unsigned int k = 0; k < stencils_.n_k; ++k)
+      {
+        const unsigned int l = local_dof_[k];
+        compact_owner_[k]    = l < n_owned_dofs ?
+                                 rank :
+                                 ghost_rank[std::upper_bound(ghost_end.begin(), ghost_end.end(), l - n_owned_dofs) -
+                                            ghost_end.begin()];
+      }
+    // Targets: the ranks that import an owned particle's DOFs, and the owners of its G row.
+    std::vector<unsigned int> owned_at(n_owned_dofs / 3 + 1, none);
+    for (unsigned int i = 0; i < stencils_.n_i; ++i)
+      owned_at[local_dof_[i] / 3] = i;
+    std::vector<std::pair<unsigned int, unsigned int>> pairs; // (owned particle, rank)
+    auto         range = pt.import_indices().begin();
+    unsigned int at    = range != pt.import_indices().end() ? range->first : 0;
+    for (const auto &[r, count] : pt.import_targets())
+      for (unsigned int left = count; left > 0;)
+        {
+          const unsigned int take = std::min(left, range->second - at);
+          for (unsigned int l = at; l < at + take; ++l)
+            if (const unsigned int i = owned_at[l / 3]; i != none && local_dof_[i] == l)
+              pairs.emplace_back(i, r);
+          at += take;
+          left -= take;
+          if (at == range->second && ++range != pt.import_indices().end())
+            at = range->first;
+        }
+    const Stencil &g = stencils_.g;
+    for (unsigned int i = 0; i < stencils_.n_i; ++i)
+      for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+        if (compact_owner_[g.columns[e]] != rank)
+          pairs.emplace_back(i, compact_owner_[g.columns[e]]);
+    std::sort(pairs.begin(), pairs.end());
+    pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+    target_offsets_.assign(stencils_.n_i + 1, 0);
+    targets_.resize(pairs.size());
+    for (std::size_t t = 0; t < pairs.size(); ++t)
+      {
+        ++target_offsets_[pairs[t].first + 1];
+        targets_[t] = pairs[t].second;
+      }
+    for (unsigned int i = 0; i < stencils_.n_i; ++i)
+      target_offsets_[i + 1] += target_offsets_[i];
+  }
+
+  unsigned int
+  ParticleSet::compact_index(const unsigned long long id)
+  {
     if (compact_of_.size() != compact_id_.size())
       {
         compact_of_.clear();
@@ -544,10 +698,198 @@ namespace shard::particles
         for (unsigned int k = 0; k < compact_id_.size(); ++k)
           compact_of_.emplace(compact_id_[k], k);
       }
-    const auto find = [&](const unsigned long long id) {
-      const auto it = compact_of_.find(id);
-      return it == compact_of_.end() ? none : it->second;
+    const auto it = compact_of_.find(id);
+    return it == compact_of_.end() ? ~0u : it->second;
+  }
+
+  namespace
+  {
+    /// Messages of bonds (two ids each) and free particles (one id each, after a 0 count of
+    /// bonds' end), by rank.
+    using Letters = std::map<unsigned int, std::pair<std::vector<ParticleSet::Bond>, std::vector<unsigned long long>>>;
+
+    /// Sends @p letters point to point; returns what arrived (bonds, free ids), sorted and
+    /// unique; adds the bytes sent to @p bytes. Collective.
+    std::pair<std::vector<ParticleSet::Bond>, std::vector<unsigned long long>>
+    post(const MPI_Comm comm, const Letters &letters, double &bytes)
+    {
+      std::pair<std::vector<ParticleSet::Bond>, std::vector<unsigned long long>> arrived;
+      if (Utilities::MPI::n_mpi_processes(comm) == 1)
+        return arrived;
+      std::map<unsigned int, std::vector<unsigned long long>> out;
+      for (const auto &[r, letter] : letters)
+        {
+          auto &v = out[r];
+          v.push_back(letter.first.size());
+          for (const auto &[a, b] : letter.first)
+            v.push_back(a), v.push_back(b);
+          v.insert(v.end(), letter.second.begin(), letter.second.end());
+          bytes += sizeof(unsigned long long) * v.size();
+        }
+      for (const auto &[from, v] : Utilities::MPI::some_to_some(comm, out))
+        {
+          (void)from;
+          const std::size_t n = v.at(0);
+          for (std::size_t t = 0; t < n; ++t)
+            arrived.first.emplace_back(v[1 + 2 * t], v[2 + 2 * t]);
+          arrived.second.insert(arrived.second.end(), v.begin() + 1 + 2 * n, v.end());
+        }
+      for (auto *list : {&arrived.first})
+        {
+          std::sort(list->begin(), list->end());
+          list->erase(std::unique(list->begin(), list->end()), list->end());
+        }
+      std::sort(arrived.second.begin(), arrived.second.end());
+      arrived.second.erase(std::unique(arrived.second.begin(), arrived.second.end()), arrived.second.end());
+      return arrived;
+    }
+
+    template <typename T>
+    bool
+    contains(const std::vector<T> &sorted, const T &x)
+    {
+      return std::binary_search(sorted.begin(), sorted.end(), x);
+    }
+  } // namespace
+
+  std::pair<std::vector<ParticleSet::Bond>, std::vector<unsigned long long>>
+  ParticleSet::tell_targets(const MPI_Comm comm, const bool everyone)
+  {
+    const unsigned int n    = stencils_.n_i;
+    const auto         owned = [&](const unsigned long long id) { return compact_index(id) < n; };
+    if (everyone)
+      {
+        // A restart starts from the union of the lists: each rank keeps its owned particles'.
+        std::vector<Bond>               bonds;
+        std::vector<unsigned long long> free;
+        for (const auto &b : broken_)
+          if (owned(b.first) || owned(b.second))
+            bonds.push_back(b);
+        for (const auto id : free_)
+          if (owned(id))
+            free.push_back(id);
+        broken_.swap(bonds);
+        free_.swap(free);
+        told_.clear();
+      }
+    // The targets each owned particle has now, and those not told before.
+    std::vector<std::pair<unsigned long long, unsigned int>> now, fresh;
+    for (unsigned int i = 0; i < n; ++i)
+      for (auto [t, end] = targets(i); t != end; ++t)
+        now.emplace_back(compact_id_[i], *t);
+    std::sort(now.begin(), now.end());
+    std::set_difference(now.begin(), now.end(), told_.begin(), told_.end(), std::back_inserter(fresh));
+    told_.swap(now);
+    if (Utilities::MPI::n_mpi_processes(comm) == 1)
+      return {};
+    // Bonds by particle, so that each fresh target gets its particle's bonds.
+    std::map<unsigned long long, std::vector<unsigned int>> bonds_of;
+    for (std::size_t t = 0; t < broken_.size(); ++t)
+      for (const auto id : {broken_[t].first, broken_[t].second})
+        if (owned(id))
+          bonds_of[id].push_back(t);
+    Letters letters;
+    for (const auto &[id, r] : fresh)
+      {
+        if (const auto it = bonds_of.find(id); it != bonds_of.end())
+          for (const unsigned int t : it->second)
+            letters[r].first.push_back(broken_[t]);
+        if (contains(free_, id))
+          letters[r].second.push_back(id);
+      }
+    double     bytes = 0;
+    auto       got   = post(comm, letters, bytes);
+    const auto fold  = [](auto &known, auto &more) {
+      std::remove_reference_t<decltype(known)> merged, fresh;
+      std::set_difference(more.begin(), more.end(), known.begin(), known.end(), std::back_inserter(fresh));
+      std::merge(known.begin(), known.end(), fresh.begin(), fresh.end(), std::back_inserter(merged));
+      known.swap(merged);
+      more.swap(fresh);
     };
+    fold(broken_, got.first);
+    fold(free_, got.second);
+    return got;
+  }
+
+  void
+  ParticleSet::restrict_to_needed(const MPI_Comm comm)
+  {
+    const auto got = tell_targets(comm, true);
+    apply_broken(got.first, got.second);
+  }
+
+  unsigned long long
+  ParticleSet::spread_bonds(const MPI_Comm comm, const std::vector<Bond> &found, double &bytes)
+  {
+    const unsigned int rank = Utilities::MPI::this_mpi_process(comm);
+    const unsigned int n    = stencils_.n_i;
+    // Round 1: to the owners of both ends (a found bond has both in this rank's compact set).
+    Letters letters;
+    for (const auto &b : found)
+      for (const auto id : {b.first, b.second})
+        if (const unsigned int k = compact_index(id); k != ~0u && compact_owner_[k] != rank)
+          letters[compact_owner_[k]].first.push_back(b);
+    for (auto &[r, letter] : letters)
+      {
+        std::sort(letter.first.begin(), letter.first.end());
+        letter.first.erase(std::unique(letter.first.begin(), letter.first.end()), letter.first.end());
+      }
+    std::vector<Bond> mine = post(comm, letters, bytes).first;
+    mine.insert(mine.end(), found.begin(), found.end());
+    std::sort(mine.begin(), mine.end());
+    mine.erase(std::unique(mine.begin(), mine.end()), mine.end());
+    // Round 2: each owner tells the targets of its particle of the bonds new to it.
+    letters.clear();
+    unsigned long long n_new = 0;
+    std::vector<Bond>  learned;
+    for (const auto &b : mine)
+      {
+        if (contains(broken_, b))
+          continue;
+        learned.push_back(b);
+        const unsigned int ka = compact_index(b.first), kb = compact_index(b.second);
+        n_new += ka < n;
+        std::vector<unsigned int> to;
+        for (const unsigned int k : {ka, kb})
+          if (k < n)
+            for (auto [t, end] = targets(k); t != end; ++t)
+              to.push_back(*t);
+        std::sort(to.begin(), to.end());
+        to.erase(std::unique(to.begin(), to.end()), to.end());
+        for (const unsigned int r : to)
+          letters[r].first.push_back(b);
+      }
+    const auto told = post(comm, letters, bytes).first;
+    learned.insert(learned.end(), told.begin(), told.end());
+    break_bonds(learned);
+    return n_new;
+  }
+
+  unsigned long long
+  ParticleSet::spread_free(const MPI_Comm comm, const std::vector<unsigned long long> &owned_ids, double &bytes)
+  {
+    Letters            letters;
+    unsigned long long n_new = 0;
+    for (const auto id : owned_ids)
+      {
+        if (contains(free_, id))
+          continue;
+        ++n_new;
+        for (auto [t, end] = targets(compact_index(id)); t != end; ++t)
+          letters[*t].second.push_back(id);
+      }
+    std::vector<unsigned long long> ids = post(comm, letters, bytes).second;
+    ids.insert(ids.end(), owned_ids.begin(), owned_ids.end());
+    break_bonds({}, ids);
+    return n_new;
+  }
+
+  void
+  ParticleSet::mark_broken(const std::vector<Bond> &bonds, const std::vector<unsigned long long> &free_ids,
+                           std::vector<unsigned int> &a_rows, std::vector<unsigned int> &g_rows)
+  {
+    constexpr unsigned int none = ~0u;
+    const auto             find = [&](const unsigned long long id) { return compact_index(id); };
     if (!free_ids.empty())
       {
         // A free particle loses the entries of its own row and those in its column.
@@ -667,8 +1009,12 @@ namespace shard::particles
       known.swap(merged);
       return fresh;
     };
-    const auto new_bonds = fresh_of(bonds, broken_);
-    const auto new_free  = fresh_of(free_ids, free_);
+    return apply_broken(fresh_of(bonds, broken_), fresh_of(free_ids, free_));
+  }
+
+  unsigned int
+  ParticleSet::apply_broken(const std::vector<Bond> &new_bonds, const std::vector<unsigned long long> &new_free)
+  {
     if (new_bonds.empty() && new_free.empty())
       return 0;
     std::vector<unsigned int> a_rows, g_rows;
@@ -751,6 +1097,7 @@ namespace shard::particles
            bytes(local_dof_) + bytes(volume_) + bytes(area_) + bytes(spacing_) + bytes(position_) + bytes(body_) +
            bytes(global_id_) + interface_.capacity() / 8 + bytes(component_) + bytes(compact_id_) +
            bytes(compact_position_) + bytes(compact_radius_) + bytes(a_identity_) + bytes(a_intact_) +
-           bytes(g_intact_) + bytes(broken_) + bytes(free_);
+           bytes(g_intact_) + bytes(broken_) + bytes(free_) + bytes(compact_owner_) + bytes(target_offsets_) +
+           bytes(targets_) + bytes(told_);
   }
 } // namespace shard::particles

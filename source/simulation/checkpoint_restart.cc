@@ -53,8 +53,6 @@ namespace shard
       std::uint64_t                                              history_hash = 0, fragments_hash = 0;
       std::vector<unsigned int>                                  converted;
       unsigned int                                               n_events = 0, n_rebuilds = 0;
-      std::vector<std::pair<unsigned long long, unsigned long long>> bonds_at_prepare, bonds;
-      Keys                                                       free_at_prepare, free;
       unsigned long long                                         n_broken = 0, n_free = 0;
     };
 
@@ -69,7 +67,38 @@ namespace shard
       base::KeyedRecords        nodes, elements, particles;
       unsigned char             has_contact = 0;
       std::vector<unsigned int> changed_rows; // ParticleSet::changed_rows(), local rows
+      /// The broken bonds and free particles this rank knows of, by node key (at the last
+      /// prepare and now); their union over the ranks is every one.
+      std::vector<std::pair<unsigned long long, unsigned long long>> bonds_at_prepare, bonds;
+      Keys                                                           free_at_prepare, free;
     };
+
+    /// The bonds of a checkpoint (pairs of node keys) with an end this rank owns, as particle
+    /// ids (first < second).
+    std::vector<Bond>
+    owned_bonds(const output::Checkpoint &checkpoint, const Utilities::MPI::Partitioner &pt,
+                const std::vector<std::pair<unsigned long long, unsigned long long>> &keys)
+    {
+      std::vector<Bond> out;
+      for (const auto &[ka, kb] : keys)
+        {
+          const unsigned long long a = checkpoint.node_of_key(ka), b = checkpoint.node_of_key(kb);
+          if (pt.in_local_range(3 * a) || pt.in_local_range(3 * b))
+            out.emplace_back(std::min(a, b), std::max(a, b));
+        }
+      return out;
+    }
+
+    /// The particles of a checkpoint (node keys) this rank owns, as particle ids.
+    Keys
+    owned_nodes(const output::Checkpoint &checkpoint, const Utilities::MPI::Partitioner &pt, const Keys &keys)
+    {
+      Keys out;
+      for (const auto k : keys)
+        if (const unsigned long long id = checkpoint.node_of_key(k); pt.in_local_range(3 * id))
+          out.push_back(id);
+      return out;
+    }
 
     /// One list of fields for writing and reading (@p io is put or get).
     template <typename IO>
@@ -81,8 +110,7 @@ namespace shard
       io(g.last_fragments_time), io(g.q_final), io(g.q_min), io(g.q_max), io(g.records);
       io(g.fragments_started), io(g.history_bytes), io(g.fragments_bytes), io(g.history_hash);
       io(g.fragments_hash), io(g.converted), io(g.n_events);
-      io(g.n_rebuilds), io(g.bonds_at_prepare), io(g.bonds), io(g.free_at_prepare), io(g.free);
-      io(g.n_broken), io(g.n_free);
+      io(g.n_rebuilds), io(g.n_broken), io(g.n_free);
     }
 
     template <typename IO>
@@ -92,6 +120,7 @@ namespace shard
       io(r.ghosts), io(r.energy), io(r.counters), io(r.contact_energy), io(r.friction_energy);
       r.nodes.serialize(io), r.elements.serialize(io), r.particles.serialize(io);
       io(r.has_contact), io(r.changed_rows);
+      io(r.bonds_at_prepare), io(r.bonds), io(r.free_at_prepare), io(r.free);
     }
 
     /// Reads header, global part, energy balance and rank part of one payload; @p reader stays after them.
@@ -208,13 +237,6 @@ namespace shard
       if (cell->is_locally_owned() && conversion_.converted_cells()[cell->active_cell_index()])
         g.converted.push_back(cell->active_cell_index());
     g.n_events = conversion_.n_events(), g.n_rebuilds = contact_.n_rebuilds();
-    if (particles_.active())
-      {
-        g.bonds_at_prepare = key_bonds(particles_.bonds_at_prepare());
-        g.bonds            = key_bonds(particles_.broken_bonds());
-        g.free_at_prepare  = key_nodes(particles_.free_at_prepare());
-        g.free             = key_nodes(particles_.free_particles());
-      }
     g.n_broken = bonds_.n_broken(), g.n_free = bonds_.n_free();
 
     SavedRank r;
@@ -230,7 +252,13 @@ namespace shard
         [&](const unsigned int i) { return checkpoint_.key_of_local_dof(particles_.local_dof(i)); });
     r.has_contact = contact_.active();
     if (particles_.active())
-      r.changed_rows = particles_.changed_rows();
+      {
+        r.changed_rows     = particles_.changed_rows();
+        r.bonds_at_prepare = key_bonds(particles_.bonds_at_prepare());
+        r.bonds            = key_bonds(particles_.broken_bonds());
+        r.free_at_prepare  = key_nodes(particles_.free_at_prepare());
+        r.free             = key_nodes(particles_.free_particles());
+      }
 
     base::BinaryWriter w;
     w.put(std::string("shard state"));
@@ -262,6 +290,9 @@ namespace shard
     SavedGlobal               g;
     SavedRank                 r;
     std::vector<unsigned int> converted;
+    // The broken bonds and free particles at the last prepare, of all ranks of the checkpoint.
+    std::vector<std::pair<unsigned long long, unsigned long long>> bonds_at_prepare;
+    Keys                                                           free_at_prepare;
     try
       {
         const unsigned int own = checkpoint_.same_rank_count() ? Utilities::MPI::this_mpi_process(comm_) : 0;
@@ -273,6 +304,8 @@ namespace shard
             EnergyBalance      energy; // read past (restore_state() takes it)
             read_payload(reader, gq, energy, rq);
             converted.insert(converted.end(), gq.converted.begin(), gq.converted.end());
+            bonds_at_prepare.insert(bonds_at_prepare.end(), rq.bonds_at_prepare.begin(), rq.bonds_at_prepare.end());
+            free_at_prepare.insert(free_at_prepare.end(), rq.free_at_prepare.begin(), rq.free_at_prepare.end());
             if (q == 0)
               g = std::move(gq);
             if (q == own)
@@ -285,26 +318,14 @@ namespace shard
       {
         source_.fail(key, checkpoint_.restart_manifest(), std::string("cannot read the checkpoint: ") + e.what());
       }
-    const auto node_bonds = [&](const std::vector<std::pair<unsigned long long, unsigned long long>> &keys) {
-      std::vector<Bond> out;
-      for (const auto &[a, b] : keys)
-        out.emplace_back(checkpoint_.node_of_key(a), checkpoint_.node_of_key(b));
-      for (auto &b : out)
-        if (b.first > b.second)
-          std::swap(b.first, b.second);
-      return out;
-    };
-    const auto nodes = [&](const Keys &keys) {
-      Keys out;
-      for (const auto k : keys)
-        out.push_back(checkpoint_.node_of_key(k));
-      return out;
-    };
+
     for (const auto c : converted)
       if (c >= conversion_.converted_cells().size())
         source_.fail(key, checkpoint_.restart_manifest(), "the checkpoint names a cell this mesh does not have.");
     conversion_.restore(converted, g.n_events);
-    particles_.restore_broken(node_bonds(g.bonds_at_prepare), nodes(g.free_at_prepare));
+    const auto &pt = *discretization_.partitioner();
+    particles_.restore_broken(owned_bonds(checkpoint_, pt, bonds_at_prepare),
+                              owned_nodes(checkpoint_, pt, free_at_prepare));
     // Rows rebuilt for broken bonds use the failure condition limit, which the run had set
     // (BondFailure::prepare) before every rebuild of the particle set after the first.
     particles_.set_broken_condition_limit(bonds_.condition_limit());
@@ -353,19 +374,20 @@ namespace shard
             reader.expect("end");
           }
 
-        // Topology after the last rebuild: the bonds that broke since then.
+        // Topology after the last rebuild: the bonds that broke since then. Each rank takes
+        // those of its own particles from all ranks' lists and tells the ranks that hold them.
         if (particles_.active())
           {
-            std::vector<Bond> bonds;
-            for (const auto &[a, b] : g.bonds)
-              bonds.emplace_back(checkpoint_.node_of_key(a), checkpoint_.node_of_key(b));
-            for (auto &b : bonds)
-              if (b.first > b.second)
-                std::swap(b.first, b.second);
-            Keys free;
-            for (const auto k : g.free)
-              free.push_back(checkpoint_.node_of_key(k));
-            particles_.break_bonds(bonds, free);
+            std::vector<std::pair<unsigned long long, unsigned long long>> keys;
+            Keys                                                           free_keys;
+            for (const auto &rq : ranks)
+              {
+                keys.insert(keys.end(), rq.bonds.begin(), rq.bonds.end());
+                free_keys.insert(free_keys.end(), rq.free.begin(), rq.free.end());
+              }
+            const auto &pt = *discretization_.partitioner();
+            particles_.break_bonds(owned_bonds(checkpoint_, pt, keys), owned_nodes(checkpoint_, pt, free_keys));
+            particles_.restrict_to_needed(comm_);
             particles_.take_rebuilt_rows();
             // The rows whose bond count the next breaking step looks at: as in the run at the
             // same partition; at another, every row (as after a rebuild of the particle set).

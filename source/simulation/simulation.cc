@@ -12,6 +12,7 @@
 
 #include <deal.II/base/mpi.h>
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -721,6 +722,8 @@ namespace shard
     const auto   rank_traffic = Utilities::MPI::all_gather(comm_, traffic);
     const auto   rank_memory  = Utilities::MPI::all_gather(comm_, memory_parts);
     const double peak_rss     = Utilities::MPI::max(memory_parts.back(), comm_);
+    const auto   rank_known   = Utilities::MPI::all_gather(
+      comm_, std::array<double, 2>{{double(particles_.broken_bonds().size()), double(particles_.free_particles().size())}});
     if (Utilities::MPI::this_mpi_process(comm_) != 0)
       return;
     output::RunSummary s;
@@ -741,6 +744,11 @@ namespace shard
     s.broken_bonds         = bonds_.n_broken();
     s.free_particles       = bonds_.n_free();
     s.contact_rebuilds     = contact_.n_rebuilds();
+    for (const auto &known : rank_known)
+      {
+        s.known_broken_bonds_by_rank.push_back(known[0]);
+        s.known_free_particles_by_rank.push_back(known[1]);
+      }
     if (!last_fragments_.empty())
       {
         double total = 0, largest = 0;

@@ -45,6 +45,10 @@ namespace shard::output
     double conversion_energy = 0;
     /// `broken_bonds`, `free_particles` and `contact_rebuilds`.
     unsigned long long broken_bonds = 0, free_particles = 0, contact_rebuilds = 0;
+    /// `known_broken_bonds_by_rank` and `known_free_particles_by_rank`: the lengths of the
+    /// lists each rank keeps (ParticleSet::broken_bonds(), free_particles()); a rank knows the
+    /// bonds and free particles near its rows, not all (written when bonds broke).
+    std::vector<double> known_broken_bonds_by_rank, known_free_particles_by_rank;
 
     /// The fragment block, written only when there are fragments.
     struct Fragments

@@ -66,11 +66,13 @@ namespace shard::particles
    *    breaking when lambda > s or lambda < 1 / s, and the opening |x_J - x_I| - |X_J - X_I|
    *    against the critical crack opening min(w_I, w_J) (a crack across the bond has opened
    *    fully; a compressed bond never breaks by it);
-   * 3. the new bonds of all ranks are gathered, so every rank breaks the same list
-   *    (ParticleSet::break_bonds rebuilds the rows from the surviving bonds);
+   * 3. the new bonds go point to point to the ranks that hold rows with them
+   *    (ParticleSet::spread_bonds: the owners of both ends, then the ranks that hold those
+   *    particles), which rebuild the rows from the surviving bonds; no rank holds a global list;
    * 4. owned particles whose relative volume J fell below their material's `minimum volume
    *    ratio` (crushed), and then those with fewer than `minimum bonds` intact bonds, become
-   *    free: all their bonds break; repeated until no particle becomes free.
+   *    free: all their bonds break, on the ranks that hold them (ParticleSet::spread_free);
+   *    repeated until no particle becomes free.
    * Mass, momentum, stress and history of every particle stay as they are. A free particle
    * has the identity as A row and a zero G row: no internal force, it moves with its
    * velocity until contact stops it.
@@ -133,7 +135,7 @@ namespace shard::particles
       return n_free_;
     }
 
-    /// Bytes this rank sent in the last update() (failure values and lists; base::Traffic).
+    /// Bytes this rank sent in the last update() (failure values, bonds and free particles; base::Traffic).
     double
     bytes_sent() const
     {

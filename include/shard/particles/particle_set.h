@@ -25,11 +25,12 @@ namespace shard::particles
    * converted cell is a particle whose coefficient d_K is the node's DOF triple in the one
    * distributed vector; V_I = sum of V_e / 8 over its cells, m_I = the lumped FE mass.
    *
-   * prepare() gathers the particle table of all ranks (global DOF, X, V, spacing, outward area
-   * vector, boundary flag), builds the stencils of the owned particles with
-   * build_local_stencils() and adds the two-hop coefficients to the ghost set of the
-   * Discretization. The table is replicated on every rank at set-up (O(N) memory per rank,
-   * 104 bytes per particle); see doc/manual/particles.md for that limit.
+   * prepare() writes the table rows of the owned particles (global DOF, X, V, spacing, outward
+   * area vector, boundary flag, component), receives those of other ranks within two support
+   * radii (point to point, chosen by all-gathered region boxes), builds the stencils of the
+   * owned particles with build_local_stencils() and adds the two-hop coefficients to the ghost
+   * set of the Discretization. No rank holds the table of all particles
+   * (doc/manual/particles.md, "Parallel").
    */
   class ParticleSet : public base::ParameterOwner
   {
@@ -202,8 +203,8 @@ namespace shard::particles
     /**
      * @brief Bytes this object keeps on this rank after prepare(): the local stencils
      * (LocalStencils::memory_consumption()) and the per-particle arrays (local DOF, volume,
-     * area vector, spacing, position, body, global id; allocated capacities). The particle
-     * table gathered from all ranks during prepare() is freed at its end and not counted.
+     * area vector, spacing, position, body, global id; allocated capacities), the bond lists and
+     * targets. The halo table of prepare() is freed at its end and not counted.
      */
     std::size_t
     memory_consumption() const;
@@ -212,19 +213,55 @@ namespace shard::particles
     using Bond = std::pair<unsigned long long, unsigned long long>;
 
     /**
-     * @brief Breaks the bonds @p bonds (the same list on every rank) for good: their entries
-     * of A and G are set to zero and every local row that held one is rebuilt from its
-     * surviving bonds (formulation.md section 5: RK with the remaining neighbours, Shepard when
-     * fewer than 4 remain, the identity when only the particle itself remains). Interpolating
-     * A rows stay identities. Rebuilt G rows carry the plain RK gradients (the consistent
-     * correction is not re-solved; doc/manual/failure.md). The particles @p free_ids (global
-     * ids, the same list on every rank) lose every bond, in whichever row it is stored. Bonds and
-     * free particles are remembered, so a rebuild by prepare() (conversion) never restores them.
-     * Not collective.
+     * @brief Breaks the bonds @p bonds for good: their entries of A and G are set to zero and
+     * every local row that held one is rebuilt from its surviving bonds (formulation.md
+     * section 5: RK with the remaining neighbours, Shepard when fewer than 4 remain, the
+     * identity when only the particle itself remains). Interpolating A rows stay identities.
+     * Rebuilt G rows carry the plain RK gradients (the consistent correction is not re-solved;
+     * doc/manual/failure.md). The particles @p free_ids (global ids) lose every bond, in
+     * whichever local row it is stored. Bonds and particles this rank does not hold are skipped
+     * but remembered; everything is remembered, so a rebuild by prepare() (conversion) never
+     * restores them. Not collective: spread_bonds() and spread_free() bring the lists to the
+     * ranks that need them.
      * @return the number of local rows rebuilt
      */
     unsigned int
     break_bonds(const std::vector<Bond> &bonds, const std::vector<unsigned long long> &free_ids = {});
+
+    /**
+     * @brief Breaks the bonds found by the tests of this rank's rows (@p found, first < second)
+     * on every rank that needs them, with two point-to-point rounds: each bond goes to the
+     * owners of its two particles; each owner sends the bonds new to it to the ranks that hold
+     * its particle (targets()). A rank therefore knows a broken bond (a, b) exactly when it owns
+     * a or b or is a target of a or b (doc/manual/failure.md "Parallel").
+     * @param bytes incremented by the bytes this rank sent
+     * @return the number of bonds new to this rank whose smaller id it owns (their sum over
+     *         the ranks counts every new bond once)
+     * @note Collective.
+     */
+    unsigned long long
+    spread_bonds(MPI_Comm comm, const std::vector<Bond> &found, double &bytes);
+
+    /**
+     * @brief Frees the owned particles @p owned_ids (global ids) and tells the ranks that hold
+     * them (targets()); breaks what the other ranks free as well.
+     * @return the number of particles of @p owned_ids that were not free before
+     * @note Collective.
+     */
+    unsigned long long
+    spread_free(MPI_Comm comm, const std::vector<unsigned long long> &owned_ids, double &bytes);
+
+    /**
+     * @brief The ranks that must hear of the broken bonds and the freeing of owned particle
+     * @p i: those that hold it as a ghost (its A or G entries may be there) and the owners of
+     * the coefficients of its G row (their particle pairs with it are judged there by contact),
+     * without this rank; sorted.
+     */
+    std::pair<const unsigned int *, const unsigned int *>
+    targets(const unsigned int i) const
+    {
+      return {targets_.data() + target_offsets_[i], targets_.data() + target_offsets_[i + 1]};
+    }
 
     /// Rows rebuilt after bonds broke use Shepard functions below this reciprocal condition
     /// number of the scaled moment matrix (or the RK limit, if larger). Unit: 1.
@@ -234,7 +271,7 @@ namespace shard::particles
       broken_rcond_limit_ = limit;
     }
 
-    /// Free particles so far (global ids, sorted; identical on every rank).
+    /// Free particles this rank knows of (global ids, sorted): its own and those of targets().
     const std::vector<unsigned long long> &
     free_particles() const
     {
@@ -269,19 +306,33 @@ namespace shard::particles
     }
 
     /**
-     * @brief Restart: sets the broken bonds and free particles (global ids, sorted, the same
-     * on every rank) that the next prepare() builds the stencils with. Not collective.
+     * @brief Restart: sets the broken bonds and free particles (global ids) that the next
+     * prepare() builds the stencils with: those of the checkpoint with an end this rank owns.
+     * That prepare() tells all targets (as restrict_to_needed()). Not collective.
      */
     void
     restore_broken(std::vector<Bond> bonds, std::vector<unsigned long long> free_ids)
     {
       std::sort(bonds.begin(), bonds.end());
+      bonds.erase(std::unique(bonds.begin(), bonds.end()), bonds.end());
       std::sort(free_ids.begin(), free_ids.end());
-      broken_ = std::move(bonds);
-      free_   = std::move(free_ids);
+      free_ids.erase(std::unique(free_ids.begin(), free_ids.end()), free_ids.end());
+      broken_     = std::move(bonds);
+      free_       = std::move(free_ids);
+      restarting_ = true;
     }
 
-    /// Every bond broken so far, sorted (identical on every rank).
+    /**
+     * @brief Restart, after break_bonds() with the bonds and free particles of the checkpoint
+     * that have an end this rank owns: every owner tells all its targets, which break what
+     * they did not know, so that each rank knows what it knew in the run (it owns an end, or
+     * is a target of one; spread_bonds()). Collective.
+     */
+    void
+    restrict_to_needed(MPI_Comm comm);
+
+    /// The broken bonds this rank knows of (sorted): those of its own particles and of the
+    /// particles it is a target of (spread_bonds()).
     const std::vector<Bond> &
     broken_bonds() const
     {
@@ -379,6 +430,15 @@ namespace shard::particles
     std::vector<unsigned long long> prepared_free_;
     /// Free particles (global ids, sorted), kept across rebuilds.
     std::vector<unsigned long long> free_;
+    /// Per compact coefficient: the rank that owns it.
+    std::vector<unsigned int> compact_owner_;
+    /// targets() of the owned particles (CSR by owned index).
+    std::vector<unsigned int> target_offsets_, targets_;
+    /// (global id, rank) pairs already told of the lists (sorted): a rebuild sends each owned
+    /// particle's bonds only to its new targets.
+    std::vector<std::pair<unsigned long long, unsigned int>> told_;
+    /// Set by restore_broken(): the next prepare() cuts the lists to what this rank needs.
+    bool restarting_ = false;
     double                          broken_rcond_limit_ = 0;
     /// Marks the entries of the local rows that hold a bond of @p bonds or a particle of
     /// @p free_ids (sorted); returns the rows of A and of G that changed.
@@ -404,6 +464,23 @@ namespace shard::particles
     /// rebuilds the rows of the bonds broken before (they stay broken across a rebuild).
     void
     set_compact_arrays(const ParticleCloud &cloud, const std::vector<const double *> &rows);
+    /// prepare(): compact_owner_ and the targets() of the owned particles, from the ghost and
+    /// import lists of @p discretization's partitioner and the G stencil.
+    void
+    set_targets(const mesh::Discretization &discretization);
+    /// Sends the bonds and free particles this rank knows of each owned particle to the targets
+    /// not told yet (all of them, after cutting the lists to the owned particles, when
+    /// @p everyone), and merges what arrives; returns what arrived that was new (not yet marked
+    /// in the stencils). Collective.
+    std::pair<std::vector<Bond>, std::vector<unsigned long long>>
+    tell_targets(MPI_Comm comm, bool everyone);
+    /// Marks and rebuilds the rows of bonds and free particles not seen before (break_bonds()
+    /// after merging them into the lists); returns the number of rows rebuilt.
+    unsigned int
+    apply_broken(const std::vector<Bond> &new_bonds, const std::vector<unsigned long long> &new_free);
+    /// Compact index of global id @p id, or ~0u (builds compact_of_ when needed).
+    unsigned int
+    compact_index(unsigned long long id);
     /// prepare(): volume, area vector, spacing, position, body, id, interface flag and component
     /// of the owned particles, cloud indices @p owned in row order.
     /// @throws base::InputError for a particle without volume.
