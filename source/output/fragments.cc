@@ -377,7 +377,9 @@ namespace shard::output
         sums.moments.pack(flat);
       }
     std::map<unsigned long long, Sums> total;
-    for (const auto &part : Utilities::MPI::all_gather(comm, flat))
+    // Only rank 0 writes the tables: the records go there, not to every rank (with much dust
+    // there are about as many records as particles).
+    for (const auto &part : Utilities::MPI::gather(comm, flat, 0))
       for (std::size_t k = 0; k < part.size(); k += record)
         {
           auto &sums = total[static_cast<unsigned long long>(part[k])];

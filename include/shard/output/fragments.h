@@ -180,9 +180,10 @@ namespace shard::output
             const particles::ParticleSet &particles);
 
     /**
-     * @brief The fragments, sorted by id, on every rank, with their body, volume, equivalent
-     * diameter and aspect ratio (positions X + d; MassMoments per rank, merged in rank order);
-     * not classified (classify()).
+     * @brief The fragments, sorted by id, on rank 0 (empty on the other ranks: only rank 0
+     * writes the tables), with their body, volume, equivalent diameter and aspect ratio
+     * (positions X + d; MassMoments per rank, merged in rank order); not classified
+     * (classify()).
      * @param d physical displacement (ghost values not needed)
      * @param v velocity
      * @param mass lumped mass
