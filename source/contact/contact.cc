@@ -24,8 +24,6 @@ namespace shard::contact
   {
     /// Doubles per node in the set-up table.
     constexpr unsigned int node_record = 13;
-    /// Doubles per segment in the set-up table: 4 node DOFs, stiffness, body, spacing.
-    constexpr unsigned int segment_record = 7;
     /// Doubles per node in the step exchange: x and v.
     constexpr unsigned int state_record = ContactNodes::state_record;
 
@@ -444,6 +442,15 @@ namespace shard::contact
   double
   Contact::build_halo(const double dt)
   {
+    HaloParts    parts = exchange_halo(dt);
+    const double bytes = parts.bytes;
+    install_halo(std::move(parts));
+    return bytes;
+  }
+
+  Contact::HaloParts
+  Contact::exchange_halo(const double dt)
+  {
     const unsigned int rank = Utilities::MPI::this_mpi_process(comm_);
     const unsigned int P    = Utilities::MPI::n_mpi_processes(comm_);
     const std::size_t  n_own = own_.size();
@@ -606,9 +613,34 @@ namespace shard::contact
             }
           bytes += sizeof(double) * o.size();
         }
-    const auto received = P > 1 ? Utilities::MPI::some_to_some(comm_, out) : std::map<unsigned int, std::vector<double>>();
+    HaloParts parts;
+    if (P > 1)
+      parts.nodes = Utilities::MPI::some_to_some(comm_, out);
     // Boxes: 48 B each to every other rank.
     bytes += base::Traffic::to_all_others(sizeof(double) * boxes_mine.size(), comm_);
+    const auto take_segments = [&](const std::vector<double> &list, std::size_t p, const std::size_t end) {
+      for (; p + 6 <= end; p += 6)
+        {
+          std::array<double, 6> r;
+          std::copy_n(&list[p], 6, r.begin());
+          parts.segments.push_back(r);
+        }
+    };
+    take_segments(segments_to[rank], 0, segments_to[rank].size());
+    for (const auto &[from, list] : first)
+      take_segments(list, 1, 1 + 6 * static_cast<std::size_t>(list[0]));
+    parts.sent  = std::move(sent);
+    parts.bytes = bytes;
+    return parts;
+  }
+
+  void
+  Contact::install_halo(HaloParts &&parts)
+  {
+    const unsigned int rank  = Utilities::MPI::this_mpi_process(comm_);
+    const unsigned int P     = Utilities::MPI::n_mpi_processes(comm_);
+    const std::size_t  n_own = own_.size();
+    const auto        &sent  = parts.sent;
 
     // The new node list: own and received nodes, sorted by DOF; segments sorted by their DOFs.
     struct Entry
@@ -617,22 +649,10 @@ namespace shard::contact
       const double *state;
       unsigned int from, position; // rank and place in its message (own: rank, k)
     };
-    std::vector<Entry>                              entries;
-    std::vector<std::array<double, segment_record>> segment_records;
+    std::vector<Entry> entries;
     for (std::size_t k = 0; k < n_own; ++k)
       entries.push_back({own_[k], &own_state_[state_record * k], rank, static_cast<unsigned int>(k)});
-    const auto take_segments = [&](const std::vector<double> &list, std::size_t p, const std::size_t end) {
-      for (; p + 6 <= end; p += 6)
-        {
-          std::array<double, segment_record> r{};
-          std::copy_n(&list[p], 6, r.begin());
-          segment_records.push_back(r);
-        }
-    };
-    take_segments(segments_to[rank], 0, segments_to[rank].size());
-    for (const auto &[from, list] : first)
-      take_segments(list, 1, 1 + 6 * static_cast<std::size_t>(list[0]));
-    for (const auto &[from, list] : received)
+    for (const auto &[from, list] : parts.nodes)
       for (std::size_t p = 0, t = 0; p + node_record + state_record <= list.size(); p += node_record + state_record, ++t)
         entries.push_back({unpack_node(&list[p]), &list[p + node_record], from, static_cast<unsigned int>(t)});
     std::sort(entries.begin(), entries.end(), [](const Entry &a, const Entry &b) { return a.node.dof < b.node.dof; });
@@ -655,7 +675,7 @@ namespace shard::contact
           from_rank[e.from].emplace_back(e.position, i);
       }
     // Segments (a segment has one owner, the owner of its cell): sorted by their node DOFs.
-    for (const auto &r : segment_records)
+    for (const auto &r : parts.segments)
       {
         ContactSegment g;
         for (unsigned int v = 0; v < 4; ++v)
@@ -732,7 +752,6 @@ namespace shard::contact
         stable_dt_    = Utilities::MPI::min(stable_dt_, comm_);
         stable_stale_ = false;
       }
-    return bytes;
   }
 
   void

@@ -263,6 +263,29 @@ namespace shard::contact
     /// sent.
     double
     build_halo(double dt);
+    /// What the two point-to-point rounds of a halo build bring (build_halo()).
+    struct HaloParts
+    {
+      /// Segment records to keep here (4 node DOFs, stiffness, body): own segments near this
+      /// rank's region and those received.
+      std::vector<std::array<double, 6>> segments;
+      /// Node records (static record, then x and v) by sending rank, in the sender's own order.
+      std::map<unsigned int, std::vector<double>> nodes;
+      /// Own nodes (indices into own_) sent to each rank, in own order.
+      std::vector<std::vector<unsigned int>> sent;
+      /// Bytes this rank sent.
+      double bytes = 0;
+    };
+    /// build_halo(), part 1 (collective): the margins (max-reduced), the region boxes
+    /// (all-gathered) and the two rounds: segments near a rank's boxes with requests to the
+    /// owners of their nodes, then the requested nodes and the particles near a rank's boxes.
+    HaloParts
+    exchange_halo(double dt);
+    /// build_halo(), part 2: the new node list (own and received nodes sorted by DOF, segments
+    /// sorted by their node DOFs), the exchange lists of the following steps, and the
+    /// interactions' per-node state carried over when the list changed.
+    void
+    install_halo(HaloParts &&parts);
     /// Positions and velocities of the halo nodes from their owners (the lists of the last
     /// build_halo()). Returns the bytes sent.
     double
