@@ -59,6 +59,8 @@ namespace shard::output
       j << "  \"conversion_energy\": " << number(s.conversion_energy) << ",\n";
       j << "  \"broken_bonds\": " << s.broken_bonds << ",\n";
       j << "  \"free_particles\": " << s.free_particles << ",\n";
+      if (!s.particle_table_rows_by_rank.empty())
+        j << "  \"particle_table_rows_by_rank\": " << list(s.particle_table_rows_by_rank) << ",\n";
       if (s.broken_bonds + s.free_particles > 0 && !s.known_broken_bonds_by_rank.empty())
         {
           j << "  \"known_broken_bonds_by_rank\": " << list(s.known_broken_bonds_by_rank) << ",\n";

@@ -450,6 +450,7 @@ namespace shard::particles
     largest_radius            = Utilities::MPI::max(largest_radius, comm);
     const ParticleTable table = halo_table(comm, mine, 2.02 * largest_radius + 1e-12);
     n_global_                 = Utilities::MPI::sum(static_cast<unsigned long long>(mine.size() / record), comm);
+    table_rows_               = table.rows.size();
     ParticleCloud             cloud;
     std::vector<unsigned int> owned;
     fill_cloud(table, cloud, owned);
@@ -506,7 +507,7 @@ namespace shard::particles
     global_id_.clear();
     interface_.clear();
     component_.clear();
-    n_global_ = 0;
+    n_global_ = table_rows_ = 0;
   }
 
   void

@@ -723,7 +723,8 @@ namespace shard
     const auto   rank_memory  = Utilities::MPI::all_gather(comm_, memory_parts);
     const double peak_rss     = Utilities::MPI::max(memory_parts.back(), comm_);
     const auto   rank_known   = Utilities::MPI::all_gather(
-      comm_, std::array<double, 2>{{double(particles_.broken_bonds().size()), double(particles_.free_particles().size())}});
+      comm_, std::array<double, 3>{{double(particles_.broken_bonds().size()), double(particles_.free_particles().size()),
+                                    double(particles_.table_rows())}});
     if (Utilities::MPI::this_mpi_process(comm_) != 0)
       return;
     output::RunSummary s;
@@ -748,6 +749,8 @@ namespace shard
       {
         s.known_broken_bonds_by_rank.push_back(known[0]);
         s.known_free_particles_by_rank.push_back(known[1]);
+        if (particles_.active())
+          s.particle_table_rows_by_rank.push_back(known[2]);
       }
     if (!last_fragments_.empty())
       {

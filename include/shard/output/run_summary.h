@@ -49,6 +49,9 @@ namespace shard::output
     /// lists each rank keeps (ParticleSet::broken_bonds(), free_particles()); a rank knows the
     /// bonds and free particles near its rows, not all (written when bonds broke).
     std::vector<double> known_broken_bonds_by_rank, known_free_particles_by_rank;
+    /// `particle_table_rows_by_rank`: the particle rows each rank built its stencils from
+    /// (ParticleSet::table_rows(); written when there are particles).
+    std::vector<double> particle_table_rows_by_rank;
 
     /// The fragment block, written only when there are fragments.
     struct Fragments

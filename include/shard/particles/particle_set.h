@@ -127,6 +127,15 @@ namespace shard::particles
       return n_global_;
     }
 
+    /// Rows of the particle table the last prepare() built the stencils from: this rank's
+    /// particles and those of other ranks within two support radii (a guard against a table of
+    /// all particles coming back; summary.json `particle_table_rows_by_rank`).
+    unsigned long long
+    table_rows() const
+    {
+      return table_rows_;
+    }
+
     /// Reference volume of owned particle @p i.
     double
     volume(unsigned int i) const
@@ -489,6 +498,6 @@ namespace shard::particles
     /// prepare(): warns (rank 0) about particles on the Shepard fallback. @note Collective.
     void
     report_fallback(MPI_Comm comm, const ParticleCloud &cloud) const;
-    unsigned long long              n_global_ = 0;
+    unsigned long long              n_global_ = 0, table_rows_ = 0;
   };
 } // namespace shard::particles
