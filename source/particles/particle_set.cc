@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <iterator>
 #include <map>
+#include <set>
 #include <memory>
 #include <unordered_map>
 #include <stdexcept>
@@ -227,17 +228,20 @@ namespace shard::particles
         }
       out.label.compress(VectorOperation::min);
       out.label.update_ghost_values();
-      // Roots that meet another rank's at a shared node: pairs (larger, smaller).
-      std::vector<std::uint64_t> pairs, mine;
+      // Roots that meet another rank's at a shared node: pairs (larger, smaller), each once.
+      std::set<std::pair<std::uint64_t, std::uint64_t>> met;
+      std::vector<std::uint64_t>                        pairs, mine;
       for (const auto &[node, p] : parent)
         {
           const std::uint64_t r = find_root(parent, node);
           const double        l = out.label.local_element(pt.global_to_local(3 * node));
           if (l < double(r))
-            pairs.push_back(r), pairs.push_back(static_cast<std::uint64_t>(l));
+            met.emplace(r, static_cast<std::uint64_t>(l));
           if (node == r)
             mine.push_back(r);
         }
+      for (const auto &[r, l] : met)
+        pairs.push_back(r), pairs.push_back(l);
       for (const auto &part : Utilities::MPI::all_gather(comm, pairs))
         for (std::size_t t = 0; t + 1 < part.size(); t += 2)
           {
@@ -705,8 +709,8 @@ namespace shard::particles
 
   namespace
   {
-    /// Messages of bonds (two ids each) and free particles (one id each, after a 0 count of
-    /// bonds' end), by rank.
+    /// What to send to each rank: bonds and free particles. On the wire a message is the number
+    /// of bonds, the two ids of each bond, then the ids of the free particles.
     using Letters = std::map<unsigned int, std::pair<std::vector<ParticleSet::Bond>, std::vector<unsigned long long>>>;
 
     /// Sends @p letters point to point; returns what arrived (bonds, free ids), sorted and
@@ -735,11 +739,8 @@ namespace shard::particles
             arrived.first.emplace_back(v[1 + 2 * t], v[2 + 2 * t]);
           arrived.second.insert(arrived.second.end(), v.begin() + 1 + 2 * n, v.end());
         }
-      for (auto *list : {&arrived.first})
-        {
-          std::sort(list->begin(), list->end());
-          list->erase(std::unique(list->begin(), list->end()), list->end());
-        }
+      std::sort(arrived.first.begin(), arrived.first.end());
+      arrived.first.erase(std::unique(arrived.first.begin(), arrived.first.end()), arrived.first.end());
       std::sort(arrived.second.begin(), arrived.second.end());
       arrived.second.erase(std::unique(arrived.second.begin(), arrived.second.end()), arrived.second.end());
       return arrived;
@@ -798,7 +799,7 @@ namespace shard::particles
         if (contains(free_, id))
           letters[r].second.push_back(id);
       }
-    double     bytes = 0;
+    double     bytes = 0; // an event's traffic, not a step's: not booked (base::Traffic)
     auto       got   = post(comm, letters, bytes);
     const auto fold  = [](auto &known, auto &more) {
       std::remove_reference_t<decltype(known)> merged, fresh;
