@@ -290,9 +290,11 @@ namespace shard
     SavedGlobal               g;
     SavedRank                 r;
     std::vector<unsigned int> converted;
-    // The broken bonds and free particles at the last prepare, of all ranks of the checkpoint.
-    std::vector<std::pair<unsigned long long, unsigned long long>> bonds_at_prepare;
-    Keys                                                           free_at_prepare;
+    // The broken bonds and free particles at the last prepare with an end this rank owns, from
+    // every rank of the checkpoint (each part cut as it is read: no rank holds all of them).
+    const auto       &pt = *discretization_.partitioner();
+    std::vector<Bond> bonds_at_prepare;
+    Keys              free_at_prepare;
     try
       {
         const unsigned int own = checkpoint_.same_rank_count() ? Utilities::MPI::this_mpi_process(comm_) : 0;
@@ -304,8 +306,10 @@ namespace shard
             EnergyBalance      energy; // read past (restore_state() takes it)
             read_payload(reader, gq, energy, rq);
             converted.insert(converted.end(), gq.converted.begin(), gq.converted.end());
-            bonds_at_prepare.insert(bonds_at_prepare.end(), rq.bonds_at_prepare.begin(), rq.bonds_at_prepare.end());
-            free_at_prepare.insert(free_at_prepare.end(), rq.free_at_prepare.begin(), rq.free_at_prepare.end());
+            for (const auto &b : owned_bonds(checkpoint_, pt, rq.bonds_at_prepare))
+              bonds_at_prepare.push_back(b);
+            for (const auto id : owned_nodes(checkpoint_, pt, rq.free_at_prepare))
+              free_at_prepare.push_back(id);
             if (q == 0)
               g = std::move(gq);
             if (q == own)
@@ -323,9 +327,7 @@ namespace shard
       if (c >= conversion_.converted_cells().size())
         source_.fail(key, checkpoint_.restart_manifest(), "the checkpoint names a cell this mesh does not have.");
     conversion_.restore(converted, g.n_events);
-    const auto &pt = *discretization_.partitioner();
-    particles_.restore_broken(owned_bonds(checkpoint_, pt, bonds_at_prepare),
-                              owned_nodes(checkpoint_, pt, free_at_prepare));
+    particles_.restore_broken(std::move(bonds_at_prepare), std::move(free_at_prepare));
     // Rows rebuilt for broken bonds use the failure condition limit, which the run had set
     // (BondFailure::prepare) before every rebuild of the particle set after the first.
     particles_.set_broken_condition_limit(bonds_.condition_limit());
@@ -378,15 +380,17 @@ namespace shard
         // those of its own particles from all ranks' lists and tells the ranks that hold them.
         if (particles_.active())
           {
-            std::vector<std::pair<unsigned long long, unsigned long long>> keys;
-            Keys                                                           free_keys;
+            const auto       &pt = *discretization_.partitioner();
+            std::vector<Bond> bonds;
+            Keys              free;
             for (const auto &rq : ranks)
               {
-                keys.insert(keys.end(), rq.bonds.begin(), rq.bonds.end());
-                free_keys.insert(free_keys.end(), rq.free.begin(), rq.free.end());
+                for (const auto &b : owned_bonds(checkpoint_, pt, rq.bonds))
+                  bonds.push_back(b);
+                for (const auto id : owned_nodes(checkpoint_, pt, rq.free))
+                  free.push_back(id);
               }
-            const auto &pt = *discretization_.partitioner();
-            particles_.break_bonds(owned_bonds(checkpoint_, pt, keys), owned_nodes(checkpoint_, pt, free_keys));
+            particles_.break_bonds(bonds, free);
             particles_.restrict_to_needed(comm_);
             particles_.take_rebuilt_rows();
             // The rows whose bond count the next breaking step looks at: as in the run at the
