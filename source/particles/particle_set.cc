@@ -752,6 +752,21 @@ namespace shard::particles
     {
       return std::binary_search(sorted.begin(), sorted.end(), x);
     }
+
+    /// Merges the entries of @p list not in @p known (sorted, unique) into it; returns them,
+    /// sorted.
+    template <typename T>
+    std::vector<T>
+    merge_new(std::vector<T> list, std::vector<T> &known)
+    {
+      std::sort(list.begin(), list.end());
+      list.erase(std::unique(list.begin(), list.end()), list.end());
+      std::vector<T> fresh, merged;
+      std::set_difference(list.begin(), list.end(), known.begin(), known.end(), std::back_inserter(fresh));
+      std::merge(known.begin(), known.end(), fresh.begin(), fresh.end(), std::back_inserter(merged));
+      known.swap(merged);
+      return fresh;
+    }
   } // namespace
 
   std::pair<std::vector<ParticleSet::Bond>, std::vector<unsigned long long>>
@@ -759,21 +774,9 @@ namespace shard::particles
   {
     const unsigned int n    = stencils_.n_i;
     const auto         owned = [&](const unsigned long long id) { return compact_index(id) < n; };
+    // A restart knows only what the checkpoint says of its owned particles: all targets are new.
     if (everyone)
-      {
-        // A restart starts from the union of the lists: each rank keeps its owned particles'.
-        std::vector<Bond>               bonds;
-        std::vector<unsigned long long> free;
-        for (const auto &b : broken_)
-          if (owned(b.first) || owned(b.second))
-            bonds.push_back(b);
-        for (const auto id : free_)
-          if (owned(id))
-            free.push_back(id);
-        broken_.swap(bonds);
-        free_.swap(free);
-        told_.clear();
-      }
+      told_.clear();
     // The targets each owned particle has now, and those not told before.
     std::vector<std::pair<unsigned long long, unsigned int>> now, fresh;
     for (unsigned int i = 0; i < n; ++i)
@@ -800,17 +803,8 @@ namespace shard::particles
           letters[r].second.push_back(id);
       }
     double     bytes = 0; // an event's traffic, not a step's: not booked (base::Traffic)
-    auto       got   = post(comm, letters, bytes);
-    const auto fold  = [](auto &known, auto &more) {
-      std::remove_reference_t<decltype(known)> merged, fresh;
-      std::set_difference(more.begin(), more.end(), known.begin(), known.end(), std::back_inserter(fresh));
-      std::merge(known.begin(), known.end(), fresh.begin(), fresh.end(), std::back_inserter(merged));
-      known.swap(merged);
-      more.swap(fresh);
-    };
-    fold(broken_, got.first);
-    fold(free_, got.second);
-    return got;
+    const auto got   = post(comm, letters, bytes);
+    return {merge_new(got.first, broken_), merge_new(got.second, free_)};
   }
 
   void
@@ -1002,16 +996,7 @@ namespace shard::particles
   ParticleSet::break_bonds(const std::vector<Bond> &bonds, const std::vector<unsigned long long> &free_ids)
   {
     // Only what is new: merged into the remembered lists, then marked and rebuilt.
-    const auto fresh_of = [](auto list, auto &known) {
-      std::sort(list.begin(), list.end());
-      list.erase(std::unique(list.begin(), list.end()), list.end());
-      decltype(list) fresh, merged;
-      std::set_difference(list.begin(), list.end(), known.begin(), known.end(), std::back_inserter(fresh));
-      std::merge(known.begin(), known.end(), fresh.begin(), fresh.end(), std::back_inserter(merged));
-      known.swap(merged);
-      return fresh;
-    };
-    return apply_broken(fresh_of(bonds, broken_), fresh_of(free_ids, free_));
+    return apply_broken(merge_new(bonds, broken_), merge_new(free_ids, free_));
   }
 
   unsigned int

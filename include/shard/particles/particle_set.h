@@ -478,9 +478,8 @@ namespace shard::particles
     void
     set_targets(const mesh::Discretization &discretization);
     /// Sends the bonds and free particles this rank knows of each owned particle to the targets
-    /// not told yet (all of them, after cutting the lists to the owned particles, when
-    /// @p everyone), and merges what arrives; returns what arrived that was new (not yet marked
-    /// in the stencils). Collective.
+    /// not told yet (all of them when @p everyone: a restart), and merges what arrives; returns
+    /// what arrived that was new (not yet marked in the stencils). Collective.
     std::pair<std::vector<Bond>, std::vector<unsigned long long>>
     tell_targets(MPI_Comm comm, bool everyone);
     /// Marks and rebuilds the rows of bonds and free particles not seen before (break_bonds()
