@@ -89,8 +89,9 @@ namespace shard::fe
 
     struct Raw
     {
-      unsigned int group, cell, body;
-      unsigned int nodes[8];
+      unsigned int  group, cell, body;
+      std::uint64_t id;
+      unsigned int  nodes[8];
     };
     std::vector<Raw> raw;
     for (const auto &cell : dh.active_cell_iterators())
@@ -101,6 +102,7 @@ namespace shard::fe
           r.body  = cell->material_id();
           r.group = group_of_body[r.body];
           r.cell  = cell->active_cell_index();
+          r.id    = cell->id().get_coarse_cell_id();
           for (unsigned int v = 0; v < 8; ++v)
             r.nodes[v] = partitioner.global_to_local(cell->vertex_dof_index(v, 0));
           raw.push_back(r);
@@ -110,6 +112,7 @@ namespace shard::fe
     const unsigned int n = raw.size();
     nodes_.resize(8 * n);
     cell_index_.resize(n);
+    cell_id_.resize(n);
     body_.resize(n);
     std::vector<unsigned int> group_of(n);
     volume0_.resize(n);
@@ -124,6 +127,7 @@ namespace shard::fe
         element_of_cell_[raw[e].cell] = static_cast<int>(e);
         std::copy(raw[e].nodes, raw[e].nodes + 8, &nodes_[8 * e]);
         cell_index_[e] = raw[e].cell;
+        cell_id_[e]    = raw[e].id;
         body_[e]       = raw[e].body;
         group_of[e]    = raw[e].group;
         double x[8][3], B[8][3];
@@ -179,6 +183,7 @@ namespace shard::fe
           q_[n] = q_[e];
           std::copy(&hourglass_[12 * e], &hourglass_[12 * e] + 12, &hourglass_[12 * n]);
           cell_index_[n] = cell_index_[e];
+          cell_id_[n]    = cell_id_[e];
           body_[n]       = body_[e];
           volume0_[n]    = volume0_[e];
           element_dt_[n] = element_dt_[e];
@@ -190,6 +195,7 @@ namespace shard::fe
     q_.resize(n);
     hourglass_.resize(12 * n);
     cell_index_.resize(n);
+    cell_id_.resize(n);
     body_.resize(n);
     volume0_.resize(n);
     element_dt_.resize(n);
@@ -243,7 +249,7 @@ namespace shard::fe
       for (unsigned int i = 0; i < 3; ++i)
         c[i] += (X.local_element(nodes_[8 * e + a] + i) + d.local_element(nodes_[8 * e + a] + i)) / 8;
     std::ostringstream out;
-    out << "element " << cell_index_[e] << " of body '" << discretization_->bodies()[body_[e]].name << "' at ("
+    out << "element " << cell_id_[e] << " of body '" << discretization_->bodies()[body_[e]].name << "' at ("
         << c[0] << ", " << c[1] << ", " << c[2] << ") m";
     return out.str();
   }

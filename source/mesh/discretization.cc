@@ -5,12 +5,22 @@
 #include <shard/mesh/gmsh_check.h>
 
 #include <deal.II/dofs/dof_tools.h>
+#include <deal.II/lac/dynamic_sparsity_pattern.h>
+#include <deal.II/lac/sparsity_tools.h>
 #include <deal.II/fe/fe_q.h>
 #include <deal.II/grid/grid_generator.h>
 #include <deal.II/grid/grid_in.h>
+#include <deal.II/grid/grid_tools.h>
 #include <deal.II/grid/tria.h>
+#include <deal.II/grid/tria_description.h>
 
 #include <algorithm>
+#include <chrono>
+#include <cstring>
+#include <limits>
+#include <numeric>
+#include <thread>
+#include <type_traits>
 #include <array>
 #include <cmath>
 #include <fstream>
@@ -299,6 +309,126 @@ namespace shard::mesh
     }
   } // namespace
 
+  /// One cell of the merged mesh as it travels between ranks: everything its coarse cell needs.
+  struct Discretization::CellRecord
+  {
+    /// Coarse cell id: the index in the merged mesh.
+    std::uint64_t id;
+    /// Position in the partition order (deal.II's hierarchical order of the cells' vertex
+    /// graph, as p4est ordered the coarse cells): each rank owns a contiguous range of it.
+    std::uint64_t order;
+    /// Merged-mesh index of each vertex (the vertex key) and its position.
+    std::uint64_t vertex[8];
+    double        x[8][3];
+    /// Owning rank, body (material id), boundary id of each face (internal_face_boundary_id inside).
+    std::uint32_t owner, material;
+    std::uint32_t boundary[6];
+  };
+
+  namespace
+  {
+    constexpr int tag_outcome = 8101, tag_cells = 8102;
+
+    /// Blocking send of @p bytes bytes (checked against MPI's int count).
+    void
+    send_bytes(const void *data, const std::size_t bytes, const unsigned int to, const int tag, const MPI_Comm comm)
+    {
+      AssertThrow(bytes < static_cast<std::size_t>(std::numeric_limits<int>::max()),
+                  ExcMessage("a mesh part of more than 2 GB for one rank: use more ranks"));
+      const int ierr = MPI_Send(data, static_cast<int>(bytes), MPI_BYTE, to, tag, comm);
+      AssertThrowMPI(ierr);
+    }
+
+    /// Receives one message of trivially copyable @p T from @p from, polling every 2 ms instead of
+    /// spinning in MPI (the wait costs no CPU time while rank 0 meshes).
+    template <typename T>
+    std::vector<T>
+    receive_quietly(const unsigned int from, const int tag, const MPI_Comm comm)
+    {
+      static_assert(std::is_trivially_copyable_v<T>);
+      MPI_Status status;
+      int        arrived = 0;
+      while (true)
+        {
+          const int ierr = MPI_Iprobe(from, tag, comm, &arrived, &status);
+          AssertThrowMPI(ierr);
+          if (arrived)
+            break;
+          std::this_thread::sleep_for(std::chrono::milliseconds(2));
+        }
+      int bytes = 0;
+      MPI_Get_count(&status, MPI_BYTE, &bytes);
+      std::vector<T> out(bytes / sizeof(T));
+      const int      ierr = MPI_Recv(out.data(), bytes, MPI_BYTE, from, tag, comm, MPI_STATUS_IGNORE);
+      AssertThrowMPI(ierr);
+      return out;
+    }
+  } // namespace
+
+  void
+  Discretization::create_from(std::vector<CellRecord> &records)
+  {
+    AssertThrow(!records.empty(), ExcMessage("a rank without cells: run with fewer ranks than cells"));
+    std::sort(records.begin(), records.end(), [](const CellRecord &a, const CellRecord &b) { return a.id < b.id; });
+    // Local vertices in key order.
+    std::vector<std::pair<std::uint64_t, Point<3>>> keyed;
+    keyed.reserve(8 * records.size());
+    for (const auto &rec : records)
+      for (unsigned int v = 0; v < 8; ++v)
+        keyed.emplace_back(rec.vertex[v], Point<3>(rec.x[v][0], rec.x[v][1], rec.x[v][2]));
+    std::sort(keyed.begin(), keyed.end(), [](const auto &a, const auto &b) { return a.first < b.first; });
+    keyed.erase(std::unique(keyed.begin(), keyed.end(), [](const auto &a, const auto &b) { return a.first == b.first; }),
+                keyed.end());
+    TriangulationDescription::Description<3, 3> description;
+    description.comm      = comm_;
+    description.settings  = TriangulationDescription::Settings::default_setting;
+    description.smoothing = dealii::Triangulation<3>::none;
+    vertex_key_.resize(keyed.size());
+    description.coarse_cell_vertices.resize(keyed.size());
+    for (std::size_t i = 0; i < keyed.size(); ++i)
+      vertex_key_[i] = keyed[i].first, description.coarse_cell_vertices[i] = keyed[i].second;
+    description.cell_infos.resize(1);
+    for (const auto &rec : records)
+      {
+        CellData<3> cell;
+        for (unsigned int v = 0; v < 8; ++v)
+          cell.vertices[v] = static_cast<unsigned int>(
+            std::lower_bound(vertex_key_.begin(), vertex_key_.end(), rec.vertex[v]) - vertex_key_.begin());
+        cell.material_id = rec.material;
+        description.coarse_cells.push_back(cell);
+        description.coarse_cell_index_to_coarse_cell_id.push_back(rec.id);
+        TriangulationDescription::CellData<3> info;
+        info.id                 = CellId(rec.id, std::vector<std::uint8_t>()).template to_binary<3>();
+        info.subdomain_id       = rec.owner;
+        info.level_subdomain_id = numbers::artificial_subdomain_id;
+        info.manifold_id        = numbers::flat_manifold_id;
+        info.manifold_line_ids.fill(numbers::flat_manifold_id);
+        info.manifold_quad_ids.fill(numbers::flat_manifold_id);
+        for (unsigned int f = 0; f < 6; ++f)
+          if (rec.boundary[f] != numbers::internal_face_boundary_id)
+            info.boundary_ids.emplace_back(f, rec.boundary[f]);
+        description.cell_infos[0].push_back(info);
+      }
+    triangulation_.clear();
+    triangulation_.create_triangulation(description);
+    // The partition order of every local cell (records and active cells are both in id order).
+    cell_order_.resize(triangulation_.n_active_cells());
+    {
+      std::size_t k = 0;
+      for (const auto &cell : triangulation_.active_cell_iterators())
+        {
+          while (k < records.size() && records[k].id < cell->id().get_coarse_cell_id())
+            ++k;
+          AssertThrow(k < records.size() && records[k].id == cell->id().get_coarse_cell_id(),
+                      ExcMessage("a cell of the triangulation without its record"));
+          cell_order_[cell->active_cell_index()] = records[k].order;
+        }
+    }
+    std::vector<CellRecord>().swap(records);
+    AssertThrow(triangulation_.n_vertices() == vertex_key_.size(),
+                ExcMessage("the triangulation renumbered its vertices"));
+  }
+
   Discretization::Discretization(MPI_Comm comm)
     : comm_(comm)
     , triangulation_(comm)
@@ -510,124 +640,268 @@ namespace shard::mesh
     bodies_.clear();
     for (const auto &name : body_names_)
       bodies_.push_back(*declared_.at(name));
+    const unsigned int n_ranks = Utilities::MPI::n_mpi_processes(comm_);
+    const bool         root    = Utilities::MPI::this_mpi_process(comm_) == 0;
 
-    // Mesh every body in serial and merge them into one coarse mesh. Vertices are not
-    // merged across bodies: bodies that touch stay separate.
-    std::vector<Point<3>>    vertices;
-    std::vector<CellData<3>> cells;
-    SubCellData              faces;
-    // The model's size, before anything is meshed: every generated body's cell count.
-    double total_cells = 0;
-    for (const auto &b : bodies_)
-      {
-        auto [cells, key] = generated_cells(b);
-        if (b.shape == "gmsh")
-          {
-            // The file's structure, line by line, before deal.II's reader sees it (a bounded read:
-            // GridIn allocates by counts it reads); its hexahedra count towards the bound.
-            const std::string path =
-              (!b.mesh_file.empty() && b.mesh_file[0] == '/') ? b.mesh_file : source.directory() + b.mesh_file;
-            std::ifstream in(path, std::ios::binary);
-            if (!in)
-              source.fail(sections::mesh + "/" + b.name + "/mesh file", b.mesh_file,
-                          "cannot open '" + path + "'. It must be a readable Gmsh .msh file of hexahedra (path "
-                          "relative to the .prm file).");
-            try
-              {
-                cells = static_cast<double>(check_gmsh(in).n_hexahedra);
-              }
-            catch (const GmshError &e)
-              {
-                source.fail(sections::mesh + "/" + b.name + "/mesh file", b.mesh_file,
-                            "'" + path + "' is not a readable Gmsh mesh of hexahedra: " + e.what());
-              }
-          }
-        total_cells += cells;
-        if (!(total_cells <= max_cells_))
-          {
-            std::ostringstream value, count, total;
-            if (key == "mesh file")
-              value << b.mesh_file;
-            else
-              value << (key == "refinement" ? static_cast<double>(b.refinement) : b.element_size);
-            if (std::isfinite(cells))
-              count << std::setprecision(cells < 1e15 ? 15 : 3) << cells;
-            else
-              count << "more than 1e308";
-            total << std::setprecision(total_cells < 1e15 ? 15 : 3) << total_cells;
-            source.fail(sections::mesh + "/" + b.name + "/" + key, value.str(),
-                        "gives " + count.str() + " cells" +
-                          (total_cells > cells ? " (the model with the bodies before it: " + total.str() + ")" : std::string()) +
-                          ", more than 'B - Mesh/max cells' = " + std::to_string(max_cells_) +
-                          " (about 2.7 KB of memory per cell; doc/manual/user_guide.md, Bad input). Use a larger element "
-                          "size, or raise 'max cells' if the machine has the memory.");
-          }
-      }
+    // Rank 0 meshes every body in serial and merges them into one mesh. Vertices are not merged
+    // across bodies: bodies that touch stay separate. The other ranks wait without spinning
+    // (their CPU time is not set-up work) for the outcome: an input error, or the boundary ids.
+    std::vector<Point<3>>                                  vertices;
+    std::vector<CellData<3>>                               cells;
+    std::vector<std::array<types::boundary_id, 6>>         boundary;
     body_boundary_ids_.assign(bodies_.size(), {});
-    for (unsigned int k = 0; k < bodies_.size(); ++k)
-      {
-        Triangulation<3> tria;
-        const auto       transform = build_body(tria, bodies_[k], source);
-        {
-          // Degenerate elements are refused here, naming the body's key, not found as an
-          // inverted element at step 1.
-          const auto       &b     = bodies_[k];
-          const WorstCell   worst = worst_cell(tria, transform);
-          if (!(worst.quality > 1e-9))
-            {
-              const std::string key = b.shape == "gmsh" ? (b.mesh_scale < 1e-100 ? "mesh scale" : "mesh file") :
-                                      b.shape == "box"  ? "upper corner" :
-                                      b.shape == "rod"  ? (b.width < b.length ? "width" : "length") :
-                                                          "radius";
-              std::ostringstream value, why;
-              if (key == "mesh file" || key == "upper corner")
-                value << (key == "mesh file" ? b.mesh_file : b.upper_corner);
-              else
-                value << (key == "mesh scale" ? b.mesh_scale : key == "width" ? b.width : key == "length" ? b.length : b.radius);
-              why << std::setprecision(4) << "element " << worst.index + 1 << " of body '" << b.name << "' (centre "
-                  << worst.centre[0] << ", " << worst.centre[1] << ", " << worst.centre[2] << " m) is "
-                  << (!(worst.quality > -1e299) ? "not finite" : worst.quality > 0 ? "degenerate" : worst.volume > 0 ? "inverted at a corner" : "of zero or negative volume")
-                  << " (smallest corner Jacobian / longest edge^3 = " << worst.quality
-                  << "; a cube has 1, shard needs > 1e-9): the body's dimensions, element size"
-                  << (b.shape == "gmsh" ? ", the file's vertices and mesh scale" : "")
-                  << " must give elements of finite, positive volume.";
-              source.fail(sections::mesh + "/" + b.name + "/" + key, value.str(), why.str());
-            }
-          for (const auto &cell : tria.active_cell_iterators())
-            for (const unsigned int f : cell->face_indices())
-              if (cell->face(f)->at_boundary())
-                body_boundary_ids_[k].insert(cell->face(f)->boundary_id());
-        }
-        std::map<unsigned int, unsigned int> vmap;
-        const auto global_vertex = [&](const unsigned int v, const Point<3> &p) {
-          const auto [it, inserted] = vmap.emplace(v, vertices.size());
-          if (inserted)
-            vertices.push_back(transform(p));
-          return it->second;
-        };
-        for (const auto &cell : tria.active_cell_iterators())
+    const auto build = [&]() {
+        // The model's size, before anything is meshed: every generated body's cell count.
+        double total_cells = 0;
+        for (const auto &b : bodies_)
           {
-            if (cell->reference_cell() != ReferenceCells::Hexahedron)
-              throw base::InputError(sections::mesh + "/" + bodies_[k].name +
-                                     ": the mesh must consist of hexahedra only.");
-            CellData<3> c;
-            for (unsigned int v = 0; v < 8; ++v)
-              c.vertices[v] = global_vertex(cell->vertex_index(v), cell->vertex(v));
-            c.material_id = k;
-            cells.push_back(c);
-            for (const unsigned int f : cell->face_indices())
-              if (cell->face(f)->at_boundary())
+            auto [cells, key] = generated_cells(b);
+            if (b.shape == "gmsh")
+              {
+                // The file's structure, line by line, before deal.II's reader sees it (a bounded read:
+                // GridIn allocates by counts it reads); its hexahedra count towards the bound.
+                const std::string path =
+                  (!b.mesh_file.empty() && b.mesh_file[0] == '/') ? b.mesh_file : source.directory() + b.mesh_file;
+                std::ifstream in(path, std::ios::binary);
+                if (!in)
+                  source.fail(sections::mesh + "/" + b.name + "/mesh file", b.mesh_file,
+                              "cannot open '" + path + "'. It must be a readable Gmsh .msh file of hexahedra (path "
+                              "relative to the .prm file).");
+                try
+                  {
+                    cells = static_cast<double>(check_gmsh(in).n_hexahedra);
+                  }
+                catch (const GmshError &e)
+                  {
+                    source.fail(sections::mesh + "/" + b.name + "/mesh file", b.mesh_file,
+                                "'" + path + "' is not a readable Gmsh mesh of hexahedra: " + e.what());
+                  }
+              }
+            total_cells += cells;
+            if (!(total_cells <= max_cells_))
+              {
+                std::ostringstream value, count, total;
+                if (key == "mesh file")
+                  value << b.mesh_file;
+                else
+                  value << (key == "refinement" ? static_cast<double>(b.refinement) : b.element_size);
+                if (std::isfinite(cells))
+                  count << std::setprecision(cells < 1e15 ? 15 : 3) << cells;
+                else
+                  count << "more than 1e308";
+                total << std::setprecision(total_cells < 1e15 ? 15 : 3) << total_cells;
+                source.fail(sections::mesh + "/" + b.name + "/" + key, value.str(),
+                            "gives " + count.str() + " cells" +
+                              (total_cells > cells ? " (the model with the bodies before it: " + total.str() + ")" : std::string()) +
+                              ", more than 'B - Mesh/max cells' = " + std::to_string(max_cells_) +
+                              " (about 2.7 KB of memory per cell; doc/manual/user_guide.md, Bad input). Use a larger element "
+                              "size, or raise 'max cells' if the machine has the memory.");
+              }
+          }
+        body_boundary_ids_.assign(bodies_.size(), {});
+        for (unsigned int k = 0; k < bodies_.size(); ++k)
+          {
+            dealii::Triangulation<3> tria;
+            const auto       transform = build_body(tria, bodies_[k], source);
+            {
+              // Degenerate elements are refused here, naming the body's key, not found as an
+              // inverted element at step 1.
+              const auto       &b     = bodies_[k];
+              const WorstCell   worst = worst_cell(tria, transform);
+              if (!(worst.quality > 1e-9))
                 {
-                  CellData<2> q;
-                  for (unsigned int v = 0; v < 4; ++v)
-                    q.vertices[v] = global_vertex(cell->face(f)->vertex_index(v), cell->face(f)->vertex(v));
-                  q.boundary_id = cell->face(f)->boundary_id();
-                  faces.boundary_quads.push_back(q);
+                  const std::string key = b.shape == "gmsh" ? (b.mesh_scale < 1e-100 ? "mesh scale" : "mesh file") :
+                                          b.shape == "box"  ? "upper corner" :
+                                          b.shape == "rod"  ? (b.width < b.length ? "width" : "length") :
+                                                              "radius";
+                  std::ostringstream value, why;
+                  if (key == "mesh file" || key == "upper corner")
+                    value << (key == "mesh file" ? b.mesh_file : b.upper_corner);
+                  else
+                    value << (key == "mesh scale" ? b.mesh_scale : key == "width" ? b.width : key == "length" ? b.length : b.radius);
+                  why << std::setprecision(4) << "element " << worst.index + 1 << " of body '" << b.name << "' (centre "
+                      << worst.centre[0] << ", " << worst.centre[1] << ", " << worst.centre[2] << " m) is "
+                      << (!(worst.quality > -1e299) ? "not finite" : worst.quality > 0 ? "degenerate" : worst.volume > 0 ? "inverted at a corner" : "of zero or negative volume")
+                      << " (smallest corner Jacobian / longest edge^3 = " << worst.quality
+                      << "; a cube has 1, shard needs > 1e-9): the body's dimensions, element size"
+                      << (b.shape == "gmsh" ? ", the file's vertices and mesh scale" : "")
+                      << " must give elements of finite, positive volume.";
+                  source.fail(sections::mesh + "/" + b.name + "/" + key, value.str(), why.str());
                 }
+              for (const auto &cell : tria.active_cell_iterators())
+                for (const unsigned int f : cell->face_indices())
+                  if (cell->face(f)->at_boundary())
+                    body_boundary_ids_[k].insert(cell->face(f)->boundary_id());
+            }
+            std::map<unsigned int, unsigned int> vmap;
+            const auto global_vertex = [&](const unsigned int v, const Point<3> &p) {
+              const auto [it, inserted] = vmap.emplace(v, vertices.size());
+              if (inserted)
+                vertices.push_back(transform(p));
+              return it->second;
+            };
+            for (const auto &cell : tria.active_cell_iterators())
+              {
+                if (cell->reference_cell() != ReferenceCells::Hexahedron)
+                  throw base::InputError(sections::mesh + "/" + bodies_[k].name +
+                                         ": the mesh must consist of hexahedra only.");
+                CellData<3> c;
+                for (unsigned int v = 0; v < 8; ++v)
+                  c.vertices[v] = global_vertex(cell->vertex_index(v), cell->vertex(v));
+                c.material_id = k;
+                cells.push_back(c);
+                boundary.emplace_back();
+                boundary.back().fill(numbers::internal_face_boundary_id);
+                for (const unsigned int f : cell->face_indices())
+                  if (cell->face(f)->at_boundary())
+                    {
+                      boundary.back()[f] = cell->face(f)->boundary_id();
+                    }
+              }
+          }
+    };
+    // Outcome of rank 0: 0 ok (then the boundary ids), 1 input error, 2 other error (then the text).
+    std::vector<char> outcome;
+    if (root)
+      {
+        char               kind = 0;
+        std::string        text;
+        std::exception_ptr error;
+        try
+          {
+            build();
+          }
+        catch (const base::InputError &e)
+          {
+            kind = 1, text = e.what(), error = std::current_exception();
+          }
+        catch (const std::exception &e)
+          {
+            kind = 2, text = base::exception_reason(e), error = std::current_exception();
+          }
+        outcome.push_back(kind);
+        if (kind == 0)
+          for (const auto &ids : body_boundary_ids_)
+            {
+              outcome.push_back(static_cast<char>(ids.size()));
+              for (const auto id : ids)
+                outcome.push_back(static_cast<char>(id));
+            }
+        else
+          outcome.insert(outcome.end(), text.begin(), text.end());
+        for (unsigned int r = 1; r < n_ranks; ++r)
+          send_bytes(outcome.data(), outcome.size(), r, tag_outcome, comm_);
+        if (error)
+          std::rethrow_exception(error);
+      }
+    else
+      {
+        outcome = receive_quietly<char>(0, tag_outcome, comm_);
+        if (outcome.at(0) != 0)
+          {
+            const std::string text(outcome.begin() + 1, outcome.end());
+            if (outcome[0] == 1)
+              throw base::InputError(text);
+            throw std::runtime_error(text);
+          }
+        std::size_t k = 1;
+        for (auto &ids : body_boundary_ids_)
+          {
+            const unsigned int n = static_cast<unsigned char>(outcome.at(k++));
+            for (unsigned int i = 0; i < n; ++i)
+              ids.insert(static_cast<unsigned char>(outcome.at(k++)));
           }
       }
-    triangulation_.clear();
-    triangulation_.create_triangulation(vertices, cells, faces);
+
+    // The first partition: the cells in the hierarchical order of their vertex graph (deal.II's
+    // SparsityTools::reorder_hierarchical, the order in which p4est kept the coarse cells), cut
+    // into contiguous ranges of equal cell count, as p4est cut them. Rank 0 sends each rank its
+    // own cells and every cell that shares a vertex with them (the ghost layer), one rank at a time.
+    std::vector<CellRecord> mine;
+    if (root)
+      {
+        const std::uint64_t        n_cells = cells.size();
+        std::vector<std::uint64_t> first(n_ranks + 1);
+        for (unsigned int r = 0; r <= n_ranks; ++r)
+          first[r] = n_cells * r / n_ranks;
+        // Cells at each vertex (compressed rows).
+        std::vector<std::uint64_t> at_vertex_start(vertices.size() + 1, 0), at_vertex;
+        for (const auto &c : cells)
+          for (const auto v : c.vertices)
+            ++at_vertex_start[v + 1];
+        for (std::size_t v = 0; v < vertices.size(); ++v)
+          at_vertex_start[v + 1] += at_vertex_start[v];
+        at_vertex.resize(at_vertex_start.back());
+        {
+          std::vector<std::uint64_t> fill(at_vertex_start.begin(), at_vertex_start.end() - 1);
+          for (std::uint64_t c = 0; c < n_cells; ++c)
+            for (const auto v : cells[c].vertices)
+              at_vertex[fill[v]++] = c;
+        }
+        // order[c]: position of cell c; by_order: the cells in that order.
+        std::vector<types::global_dof_index> order(n_cells);
+        if (n_ranks > 1)
+          {
+            DynamicSparsityPattern graph(n_cells, n_cells);
+            for (std::uint64_t c = 0; c < n_cells; ++c)
+              for (const auto v : cells[c].vertices)
+                for (auto k = at_vertex_start[v]; k < at_vertex_start[v + 1]; ++k)
+                  graph.add(c, at_vertex[k]);
+            SparsityTools::reorder_hierarchical(graph, order);
+          }
+        else
+          std::iota(order.begin(), order.end(), 0);
+        std::vector<std::uint64_t> by_order(n_cells);
+        for (std::uint64_t c = 0; c < n_cells; ++c)
+          by_order[order[c]] = c;
+        const auto owner = [&](const std::uint64_t c) {
+          return static_cast<unsigned int>(std::upper_bound(first.begin(), first.end(), order[c]) - first.begin() - 1);
+        };
+        std::vector<unsigned int> stamp(n_cells, numbers::invalid_unsigned_int);
+        for (unsigned int r = 0; r < n_ranks; ++r)
+          {
+            std::vector<std::uint64_t> local;
+            for (std::uint64_t k_own = first[r]; k_own < first[r + 1]; ++k_own)
+              for (const auto v : cells[by_order[k_own]].vertices)
+                for (auto k = at_vertex_start[v]; k < at_vertex_start[v + 1]; ++k)
+                  if (stamp[at_vertex[k]] != r)
+                    {
+                      stamp[at_vertex[k]] = r;
+                      local.push_back(at_vertex[k]);
+                    }
+            std::sort(local.begin(), local.end());
+            std::vector<CellRecord> records(local.size());
+            for (std::size_t i = 0; i < local.size(); ++i)
+              {
+                auto &rec    = records[i];
+                const auto &c = cells[local[i]];
+                rec.id       = local[i];
+                rec.order    = order[local[i]];
+                rec.owner    = owner(local[i]);
+                rec.material = c.material_id;
+                for (unsigned int v = 0; v < 8; ++v)
+                  {
+                    rec.vertex[v] = c.vertices[v];
+                    for (unsigned int d = 0; d < 3; ++d)
+                      rec.x[v][d] = vertices[c.vertices[v]][d];
+                  }
+                for (unsigned int f = 0; f < 6; ++f)
+                  rec.boundary[f] = boundary[local[i]][f];
+              }
+            if (r == 0)
+              mine = std::move(records);
+            else
+              send_bytes(records.data(), records.size() * sizeof(CellRecord), r, tag_cells, comm_);
+          }
+      }
+    else
+      mine = receive_quietly<CellRecord>(0, tag_cells, comm_);
+    n_global_vertices_ = Utilities::MPI::broadcast(comm_, static_cast<std::uint64_t>(vertices.size()), 0);
+    // The serial mesh exists on rank 0 only until here.
+    std::vector<Point<3>>().swap(vertices);
+    std::vector<CellData<3>>().swap(cells);
+    std::vector<std::array<types::boundary_id, 6>>().swap(boundary);
+    create_from(mine);
     distribute();
   }
 
@@ -667,7 +941,7 @@ namespace shard::mesh
         for (const unsigned int v : cell->vertex_indices())
           ++n_converted[cell->vertex_index(v)];
     // Work of a cell in units of 1/1000 element: an element, or the shares of its particles.
-    const auto work = [&](const Triangulation<3>::cell_iterator &cell) {
+    const auto work = [&](const dealii::Triangulation<3>::cell_iterator &cell) {
       if (!cell->is_active() || !converted_cells[cell->active_cell_index()])
         return 1000.;
       double particles = 0;
@@ -681,12 +955,91 @@ namespace shard::mesh
         owned_work += work(cell) / 1000.;
     const double before = Utilities::MPI::max(owned_work, comm_) /
                           (Utilities::MPI::sum(owned_work, comm_) / Utilities::MPI::n_mpi_processes(comm_));
-    const auto connection = triangulation_.signals.weight.connect(
-      [&](const Triangulation<3>::cell_iterator &cell, const Triangulation<3>::CellStatus) -> unsigned int {
-        return std::max(1u, static_cast<unsigned int>(std::lround(work(cell))));
-      });
-    triangulation_.repartition();
-    connection.disconnect();
+    // New owners: the cells in the partition order (each rank owns a contiguous range of it)
+    // cut into ranges of equal work, as p4est's weighted partition did.
+    std::vector<std::array<std::uint64_t, 3>> owned; // (order, coarse id, weight)
+    for (const auto &cell : triangulation_.active_cell_iterators())
+      if (cell->is_locally_owned())
+        owned.push_back({{cell_order_[cell->active_cell_index()], cell->id().get_coarse_cell_id(),
+                          std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::lround(work(cell))))}});
+    std::sort(owned.begin(), owned.end());
+    std::uint64_t local_weight = 0, offset = 0;
+    for (const auto &o : owned)
+      local_weight += o[2];
+    int ierr = MPI_Exscan(&local_weight, &offset, 1, MPI_UINT64_T, MPI_SUM, comm_);
+    AssertThrowMPI(ierr);
+    const unsigned int  n_ranks = Utilities::MPI::n_mpi_processes(comm_), me = Utilities::MPI::this_mpi_process(comm_);
+    if (me == 0)
+      offset = 0;
+    const std::uint64_t total = Utilities::MPI::sum(local_weight, comm_);
+    std::map<std::uint64_t, unsigned int> new_owner; // of own and ghost cells, by coarse id
+    {
+      std::uint64_t before_cell = offset;
+      for (const auto &o : owned)
+        {
+          const auto r = static_cast<unsigned int>(
+            static_cast<long double>(before_cell) * n_ranks / std::max<std::uint64_t>(total, 1));
+          new_owner[o[1]] = std::min(r, n_ranks - 1);
+          before_cell += o[2];
+        }
+    }
+    const auto cells_at_vertex = GridTools::vertex_to_cell_map(triangulation_);
+    // Ghost cells learn their new owner from their current owner.
+    {
+      std::map<unsigned int, std::vector<std::pair<std::uint64_t, unsigned int>>> tell;
+      for (const auto &cell : triangulation_.active_cell_iterators())
+        if (cell->is_locally_owned())
+          {
+            std::set<unsigned int> ranks;
+            for (const unsigned int v : cell->vertex_indices())
+              for (const auto &other : cells_at_vertex[cell->vertex_index(v)])
+                if (other->is_ghost())
+                  ranks.insert(other->subdomain_id());
+            for (const auto r : ranks)
+              tell[r].emplace_back(cell->id().get_coarse_cell_id(), new_owner[cell->id().get_coarse_cell_id()]);
+          }
+      for (const auto &[from, list] : Utilities::MPI::some_to_some(comm_, tell))
+        for (const auto &[id, r] : list)
+          new_owner[id] = r;
+    }
+    // Each own cell goes to its new owner and to the new owners of the cells at its vertices.
+    std::map<unsigned int, std::vector<char>> out; // CellRecords as bytes
+    for (const auto &cell : triangulation_.active_cell_iterators())
+      if (cell->is_locally_owned())
+        {
+          const auto              id = cell->id().get_coarse_cell_id();
+          std::set<unsigned int>  to{new_owner.at(id)};
+          for (const unsigned int v : cell->vertex_indices())
+            for (const auto &other : cells_at_vertex[cell->vertex_index(v)])
+              to.insert(new_owner.at(other->id().get_coarse_cell_id()));
+          CellRecord rec;
+          rec.id       = id;
+          rec.order    = cell_order_[cell->active_cell_index()];
+          rec.owner    = new_owner.at(id);
+          rec.material = cell->material_id();
+          for (unsigned int v = 0; v < 8; ++v)
+            {
+              rec.vertex[v] = vertex_key_[cell->vertex_index(v)];
+              for (unsigned int d = 0; d < 3; ++d)
+                rec.x[v][d] = cell->vertex(v)[d];
+            }
+          for (unsigned int f = 0; f < 6; ++f)
+            rec.boundary[f] = cell->face(f)->at_boundary() ? cell->face(f)->boundary_id() :
+                                                             numbers::internal_face_boundary_id;
+          const auto *bytes = reinterpret_cast<const char *>(&rec);
+          for (const auto r : to)
+            out[r].insert(out[r].end(), bytes, bytes + sizeof(rec));
+        }
+    std::vector<char> bytes;
+    if (out.count(me))
+      bytes = std::move(out[me]), out.erase(me);
+    for (auto &[from, part] : Utilities::MPI::some_to_some(comm_, out))
+      bytes.insert(bytes.end(), part.begin(), part.end());
+    out.clear();
+    std::vector<CellRecord> mine(bytes.size() / sizeof(CellRecord));
+    std::memcpy(static_cast<void *>(mine.data()), bytes.data(), mine.size() * sizeof(CellRecord));
+    std::vector<char>().swap(bytes);
+    create_from(mine);
     distribute();
     return before;
   }

@@ -221,8 +221,8 @@ namespace shard::output
       fingerprint_ = h.str();
     }
 
-    // Keys: coarse-mesh vertex index of each owned node (the mesh has coarse cells only, so
-    // vertex indices are the same at any rank count), and the global tables of all nodes.
+    // Keys: the merged-mesh vertex index of each owned node (Discretization::vertex_key(), the
+    // same at any rank count), and the global tables of all nodes.
     const auto &pt = *discretization.partitioner();
     key_of_owned_.assign(pt.locally_owned_size() / 3, ~0ull);
     std::vector<unsigned long long> pairs;
@@ -233,16 +233,17 @@ namespace shard::output
             const auto g = cell->vertex_dof_index(v, 0);
             if (pt.in_local_range(g) && key_of_owned_[pt.global_to_local(g) / 3] == ~0ull)
               {
-                key_of_owned_[pt.global_to_local(g) / 3] = cell->vertex_index(v);
+                const auto key = discretization.vertex_key(cell->vertex_index(v));
+                key_of_owned_[pt.global_to_local(g) / 3] = key;
                 pairs.push_back(g / 3);
-                pairs.push_back(cell->vertex_index(v));
+                pairs.push_back(key);
               }
           }
     if (std::find(key_of_owned_.begin(), key_of_owned_.end(), ~0ull) != key_of_owned_.end())
       throw std::logic_error("Checkpoint: an owned node without a vertex");
     const auto n_nodes = discretization.dof_handler().n_dofs() / 3;
     key_of_node_.assign(n_nodes, ~0ull);
-    node_of_key_.assign(discretization.triangulation().n_vertices(), ~0ull);
+    node_of_key_.assign(discretization.n_global_vertices(), ~0ull);
     for (const auto &list : Utilities::MPI::all_gather(comm_, pairs))
       for (std::size_t k = 0; k + 1 < list.size(); k += 2)
         {

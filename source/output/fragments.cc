@@ -292,7 +292,7 @@ namespace shard::output
               volume.local_element(pt.global_to_local(g)) += ve / 8;
               if (pt.in_local_range(g))
                 {
-                  node_id_[pt.global_to_local(g) / 3] = cell->vertex_index(v);
+                  node_id_[pt.global_to_local(g) / 3] = discretization.vertex_key(cell->vertex_index(v));
                   body_[pt.global_to_local(g) / 3]    = cell->material_id();
                 }
             }

@@ -235,7 +235,7 @@ namespace shard
     // the ranks is the converted set).
     for (const auto &cell : discretization_.triangulation().active_cell_iterators())
       if (cell->is_locally_owned() && conversion_.converted_cells()[cell->active_cell_index()])
-        g.converted.push_back(cell->active_cell_index());
+        g.converted.push_back(static_cast<unsigned int>(cell->id().get_coarse_cell_id()));
     g.n_events = conversion_.n_events(), g.n_rebuilds = contact_.n_rebuilds();
     g.n_broken = bonds_.n_broken(), g.n_free = bonds_.n_free();
 
@@ -289,7 +289,7 @@ namespace shard
     const std::string         key = sections::checkpoint + "/restart from";
     SavedGlobal               g;
     SavedRank                 r;
-    std::vector<unsigned int> converted;
+    std::vector<std::uint64_t> converted; // coarse cell ids
     // The broken bonds and free particles at the last prepare with an end this rank owns, from
     // every rank of the checkpoint (each part cut as it is read: no rank holds all of them).
     const auto       &pt = *discretization_.partitioner();
@@ -324,7 +324,7 @@ namespace shard
       }
 
     for (const auto c : converted)
-      if (c >= conversion_.converted_cells().size())
+      if (c >= discretization_.n_elements())
         source_.fail(key, checkpoint_.restart_manifest(), "the checkpoint names a cell this mesh does not have.");
     conversion_.restore(converted, g.n_events);
     particles_.restore_broken(std::move(bonds_at_prepare), std::move(free_at_prepare));

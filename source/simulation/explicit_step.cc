@@ -239,17 +239,17 @@ namespace shard
   ExplicitStep::collapsed_step_message() const
   {
     // The element or particle of this rank with the smallest own step, then of all ranks; ties
-    // go to elements before particles, then to the smaller cell index or global particle id, so
+    // go to elements before particles, then to the smaller coarse cell id or global particle id, so
     // the answer does not depend on the partition.
     double             best = 1e300;
     unsigned long long kind = 2, id = 0;
     std::string        place;
     for (unsigned int e = 0; e < c_.hex.n_local_elements(); ++e)
-      if (c_.hex.element_stable_dt(e) < best || (c_.hex.element_stable_dt(e) == best && c_.hex.cell_index(e) < id))
+      if (c_.hex.element_stable_dt(e) < best || (c_.hex.element_stable_dt(e) == best && c_.hex.cell_id(e) < id))
         {
           best  = c_.hex.element_stable_dt(e);
           kind  = 0;
-          id    = c_.hex.cell_index(e);
+          id    = c_.hex.cell_id(e);
           place = c_.hex.describe(e, s_.d);
         }
     if (c_.spg.active() && c_.spg.n_owned() > 0 && s_.particle_dt < best)

@@ -181,18 +181,17 @@ namespace shard::coupling
     }
 
     /**
-     * @brief Restart: replaces the converted set by the cells @p cells (active cell indices
-     * of the whole mesh, sorted, the same list on every rank; each rank keeps those it does
-     * not hold as artificial cells, as prepare() and add_cells() do) and the event count by
-     * @p n_events. Call after prepare() and before the particle set is built.
+     * @brief Restart: replaces the converted set by the cells @p cells (coarse cell ids, sorted,
+     * the same list on every rank; each rank flags those it holds, own and ghost) and the event
+     * count by @p n_events. Call after prepare() and before the particle set is built.
      */
     void
-    restore(const std::vector<unsigned int> &cells, unsigned int n_events)
+    restore(const std::vector<std::uint64_t> &cells, unsigned int n_events)
     {
       std::fill(converted_.begin(), converted_.end(), false);
       for (const auto &cell : discretization_->triangulation().active_cell_iterators())
         if (!cell->is_artificial() &&
-            std::binary_search(cells.begin(), cells.end(), cell->active_cell_index()))
+            std::binary_search(cells.begin(), cells.end(), cell->id().get_coarse_cell_id()))
           converted_[cell->active_cell_index()] = true;
       n_converted_ = cells.size();
       n_events_    = n_events;

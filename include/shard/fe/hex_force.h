@@ -123,6 +123,13 @@ namespace shard::fe
       return cell_index_[e];
     }
 
+    /// Coarse cell id of local element @p e (its index in the merged mesh, the same at any rank count).
+    std::uint64_t
+    cell_id(unsigned int e) const
+    {
+      return cell_id_[e];
+    }
+
     /// Local element index of the active cell @p cell_index, or -1 if the cell is not owned here.
     int
     element_of_cell(unsigned int cell_index) const
@@ -177,7 +184,7 @@ namespace shard::fe
     }
 
     /**
-     * @brief The checkpoint of every local element, by active cell index (independent of the
+     * @brief The checkpoint of every local element, by coarse cell id (independent of the
      * partition): stress (6), bulk viscosity q, hourglass forces (12), then the history slots.
      */
     base::KeyedRecords
@@ -191,7 +198,7 @@ namespace shard::fe
           r.push_back(q_[e]);
           r.insert(r.end(), hourglass_.begin() + 12 * e, hourglass_.begin() + 12 * e + 12);
           r.insert(r.end(), state(e), state(e) + points_.n_slots(e));
-          out.add(cell_index(e), r.data(), r.data() + r.size());
+          out.add(cell_id_[e], r.data(), r.data() + r.size());
         }
       return out;
     }
@@ -206,8 +213,8 @@ namespace shard::fe
     {
       for (unsigned int e = 0; e < n_local_elements(); ++e)
         {
-          const std::string what = "element of cell " + std::to_string(cell_index(e));
-          const auto        r    = saved.find(cell_index(e), what);
+          const std::string what = "element of cell " + std::to_string(cell_id_[e]);
+          const auto        r    = saved.find(cell_id_[e], what);
           if (r.size != 19 + points_.n_slots(e))
             throw std::runtime_error(what + " has another number of history values");
           std::copy(r.values, r.values + 6, stress_.begin() + 6 * e);
@@ -233,7 +240,7 @@ namespace shard::fe
     {
       std::size_t bytes = sizeof(*this);
       const auto  add   = [&](const auto &v) { bytes += v.capacity() * sizeof(v[0]); };
-      add(nodes_), add(cell_index_), add(body_), add(element_of_cell_), add(volume0_);
+      add(nodes_), add(cell_index_), add(cell_id_), add(body_), add(element_of_cell_), add(volume0_);
       add(element_dt_), add(stress_), add(q_), add(hourglass_);
       return bytes + points_.memory_consumption();
     }
@@ -248,7 +255,8 @@ namespace shard::fe
     const mesh::Discretization       *discretization_ = nullptr;
     const materials::MaterialLibrary *library_        = nullptr;
     std::vector<unsigned int>   nodes_;      // 8 per element: local index of the node's first DOF
-    std::vector<unsigned int>   cell_index_; // active cell index
+    std::vector<unsigned int>   cell_index_; // active cell index (local)
+    std::vector<std::uint64_t>  cell_id_;    // coarse cell id (the same at any rank count)
     std::vector<unsigned int>   body_;
     std::vector<int>            element_of_cell_;
     std::vector<double>         volume0_;

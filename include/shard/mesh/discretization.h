@@ -9,7 +9,7 @@
 #include <shard/base/parameters.h>
 
 #include <deal.II/base/partitioner.h>
-#include <deal.II/distributed/tria.h>
+#include <deal.II/distributed/fully_distributed_tria.h>
 #include <deal.II/dofs/dof_handler.h>
 #include <deal.II/fe/fe_system.h>
 #include <deal.II/lac/la_parallel_vector.h>
@@ -118,9 +118,15 @@ namespace shard::mesh
   /**
    * @brief Owns the bodies, the distributed triangulation, the Q1 vector element and the DoFs.
    *
-   * All bodies are meshed in serial, refined, and merged into one coarse mesh that is then
-   * partitioned by p4est. Cell material id = body index; each body keeps its own boundary ids.
-   * The three DOFs of a vertex are consecutive and owned by one rank (checked in prepare()).
+   * All bodies are meshed in serial on rank 0 and merged into one mesh (the model's cells in
+   * input order; vertices are not merged across bodies). Rank 0 orders the cells hierarchically
+   * (as p4est ordered its coarse cells), cuts that order into contiguous ranges and sends each
+   * rank its own cells and the layer of cells that share a vertex with them; every rank then holds only that part, as a
+   * `parallel::fullydistributed::Triangulation` (doc/manual/cluster.md, "The distributed
+   * mesh"). Every cell is a coarse cell; its coarse cell id is its index in the merged mesh, and
+   * vertex_key() gives a vertex's index there: both are the same at any rank count. Cell material
+   * id = body index; each body keeps its own boundary ids. The three DOFs of a vertex are
+   * consecutive and owned by one rank (checked in prepare()).
    */
   class Discretization : public base::ParameterOwner
   {
@@ -146,9 +152,11 @@ namespace shard::mesh
      * @brief Repartitions the cells over the ranks by work: 1 per element, `particle weight`
      * per particle, a converted cell (@p converted_cells, by active cell index) carrying 1/n of
      * each of its nodes (n = converted cells at the node), and rebuilds DoFs, partitioner and
-     * reference positions. Nothing is done on one rank or with `particle weight` = 0. Call it
-     * before any component stores local indices; cell flags by active cell index stay valid only
-     * on cells that were and are not artificial (recompute them).
+     * reference positions. The cells stay in contiguous ranges of the partition order; each
+     * rank sends its own cells to their new owner and to the ranks that need them as ghosts
+     * (point to point). Nothing is done on one rank or with `particle weight` = 0. Call it
+     * before any component stores local indices; every local index changes, so cell flags by
+     * active cell index must be recomputed.
      * @return the imbalance (largest over mean owned work) of the partition before, or 0 if
      * nothing was done.
      * @note Collective.
@@ -178,8 +186,11 @@ namespace shard::mesh
     int
     body_index(const std::string &name) const;
 
-    /// The distributed triangulation.
-    const dealii::parallel::distributed::Triangulation<3> &
+    /// The triangulation type: each rank holds its own cells and one layer of ghost cells.
+    using Triangulation = dealii::parallel::fullydistributed::Triangulation<3>;
+
+    /// The distributed triangulation (own cells and the ghost layer only).
+    const Triangulation &
     triangulation() const
     {
       return triangulation_;
@@ -211,6 +222,23 @@ namespace shard::mesh
     initialize_vector(Vector &v) const
     {
       v.reinit(partitioner_);
+    }
+
+    /**
+     * @brief The key of local vertex @p local_vertex (an index of `triangulation().get_vertices()`):
+     * its index in the merged mesh of all bodies, the same at any rank count and partition.
+     */
+    std::uint64_t
+    vertex_key(const unsigned int local_vertex) const
+    {
+      return vertex_key_[local_vertex];
+    }
+
+    /// Number of vertices of the merged mesh of all bodies (keys are below it).
+    std::uint64_t
+    n_global_vertices() const
+    {
+      return n_global_vertices_;
     }
 
     /// Number of active cells in all bodies.
@@ -272,6 +300,14 @@ namespace shard::mesh
     void
     distribute();
 
+    /// One cell as it travels between ranks: the whole coarse-cell description (.cc).
+    struct CellRecord;
+
+    /// Builds this rank's triangulation from the records of its own and ghost cells (any order,
+    /// each cell once) and sets the vertex keys.
+    void
+    create_from(std::vector<CellRecord> &records);
+
     MPI_Comm                                                comm_;
     std::vector<std::string>                                body_names_ = {"body"};
     std::string                                             body_names_text_ = "body";
@@ -280,7 +316,12 @@ namespace shard::mesh
     std::vector<std::set<unsigned int>>                     body_boundary_ids_;
     std::vector<BodyParameters>                             bodies_;
     std::map<std::string, std::unique_ptr<BodyParameters>> declared_;
-    dealii::parallel::distributed::Triangulation<3>         triangulation_;
+    Triangulation                                           triangulation_;
+    /// Partition order of each local cell, by active cell index (CellRecord::order).
+    std::vector<std::uint64_t>                              cell_order_;
+    /// Merged-mesh index of each local vertex (vertex_key()).
+    std::vector<std::uint64_t>                              vertex_key_;
+    std::uint64_t                                           n_global_vertices_ = 0;
     dealii::FESystem<3>                                     fe_;
     dealii::DoFHandler<3>                                   dof_handler_;
     std::shared_ptr<const dealii::Utilities::MPI::Partitioner> partitioner_;
