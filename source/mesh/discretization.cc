@@ -842,11 +842,18 @@ namespace shard::mesh
         std::vector<types::global_dof_index> order(n_cells);
         if (n_ranks > 1)
           {
-            DynamicSparsityPattern graph(n_cells, n_cells);
+            // Each row added at once, sorted (adding entry by entry took most of the time).
+            DynamicSparsityPattern             graph(n_cells, n_cells);
+            std::vector<types::global_dof_index> row;
             for (std::uint64_t c = 0; c < n_cells; ++c)
-              for (const auto v : cells[c].vertices)
-                for (auto k = at_vertex_start[v]; k < at_vertex_start[v + 1]; ++k)
-                  graph.add(c, at_vertex[k]);
+              {
+                row.clear();
+                for (const auto v : cells[c].vertices)
+                  row.insert(row.end(), at_vertex.begin() + at_vertex_start[v], at_vertex.begin() + at_vertex_start[v + 1]);
+                std::sort(row.begin(), row.end());
+                row.erase(std::unique(row.begin(), row.end()), row.end());
+                graph.add_entries(c, row.begin(), row.end(), true);
+              }
             SparsityTools::reorder_hierarchical(graph, order);
           }
         else
