@@ -225,16 +225,7 @@ namespace shard::coupling
                       const base::PrmSource &source)
   {
     discretization_ = &discretization;
-    std::vector<Region> regions;
-    for (const auto &name : particle_bodies)
-      {
-        const int b = discretization.body_index(name);
-        if (b < 0)
-          source.fail(sections::particles + "/bodies", name, "no body named '" + name + "' in 'B - Mesh/body names'.");
-        RegionParameters whole;
-        whole.shape = "body";
-        regions.emplace_back(whole, b);
-      }
+    const std::vector<Region> regions = setup_regions(discretization, particle_bodies, source);
     // A named region (of 'regions' or 'adaptive regions') with its body resolved.
     const auto resolve = [&](const std::string &name) {
       const auto &r = *declared_.at(name);
@@ -243,8 +234,6 @@ namespace shard::coupling
         source.fail(sections::conversion + "/" + name + "/body", r.body, "no body named '" + r.body + "' in 'B - Mesh/body names'.");
       return Region(r, b);
     };
-    for (const auto &name : region_names_)
-      regions.push_back(resolve(name));
     std::vector<Region> adaptive_regions;
     for (const auto &name : adaptive_region_names_)
       adaptive_regions.push_back(resolve(name));
@@ -287,6 +276,44 @@ namespace shard::coupling
         }
     n_converted_ = Utilities::MPI::sum(owned, discretization.communicator());
     n_events_    = 0;
+  }
+
+  std::vector<Region>
+  Conversion::setup_regions(const mesh::Discretization &discretization, const std::vector<std::string> &particle_bodies,
+                            const base::PrmSource &source) const
+  {
+    std::vector<Region> regions;
+    for (const auto &name : particle_bodies)
+      {
+        const int b = discretization.body_index(name);
+        if (b < 0)
+          source.fail(sections::particles + "/bodies", name, "no body named '" + name + "' in 'B - Mesh/body names'.");
+        RegionParameters whole;
+        whole.shape = "body";
+        regions.emplace_back(whole, b);
+      }
+    for (const auto &name : region_names_)
+      {
+        const auto &r = *declared_.at(name);
+        const int   b = discretization.body_index(r.body);
+        if (b < 0)
+          source.fail(sections::conversion + "/" + name + "/body", r.body, "no body named '" + r.body + "' in 'B - Mesh/body names'.");
+        regions.emplace_back(r, b);
+      }
+    return regions;
+  }
+
+  std::function<bool(unsigned int, const std::array<double, 3> &)>
+  Conversion::converted_at_setup(const mesh::Discretization &discretization,
+                                 const std::vector<std::string> &particle_bodies, const base::PrmSource &source) const
+  {
+    auto regions = setup_regions(discretization, particle_bodies, source);
+    return [regions = std::move(regions)](const unsigned int body, const std::array<double, 3> &x) {
+      bool in = false;
+      for (const auto &r : regions)
+        in |= r.body() == static_cast<int>(body) && r.contains(x);
+      return in;
+    };
   }
 
   std::vector<std::string>

@@ -314,9 +314,6 @@ namespace shard::mesh
   {
     /// Coarse cell id: the index in the merged mesh.
     std::uint64_t id;
-    /// Position in the partition order (deal.II's hierarchical order of the cells' vertex
-    /// graph, as p4est ordered the coarse cells): each rank owns a contiguous range of it.
-    std::uint64_t order;
     /// Merged-mesh index of each vertex (the vertex key) and its position.
     std::uint64_t vertex[8];
     double        x[8][3];
@@ -411,19 +408,6 @@ namespace shard::mesh
       }
     triangulation_.clear();
     triangulation_.create_triangulation(description);
-    // The partition order of every local cell (records and active cells are both in id order).
-    cell_order_.resize(triangulation_.n_active_cells());
-    {
-      std::size_t k = 0;
-      for (const auto &cell : triangulation_.active_cell_iterators())
-        {
-          while (k < records.size() && records[k].id < cell->id().get_coarse_cell_id())
-            ++k;
-          AssertThrow(k < records.size() && records[k].id == cell->id().get_coarse_cell_id(),
-                      ExcMessage("a cell of the triangulation without its record"));
-          cell_order_[cell->active_cell_index()] = records[k].order;
-        }
-    }
     std::vector<CellRecord>().swap(records);
     AssertThrow(triangulation_.n_vertices() == vertex_key_.size(),
                 ExcMessage("the triangulation renumbered its vertices"));
@@ -635,13 +619,17 @@ namespace shard::mesh
   }
 
   void
-  Discretization::prepare(const base::PrmSource &source)
+  Discretization::prepare(const base::PrmSource &source, const std::function<SetupConversion(const Discretization &)> &conversion)
   {
     bodies_.clear();
     for (const auto &name : body_names_)
       bodies_.push_back(*declared_.at(name));
     const unsigned int n_ranks = Utilities::MPI::n_mpi_processes(comm_);
     const bool         root    = Utilities::MPI::this_mpi_process(comm_) == 0;
+    // The set-up conversion rule, for the weights (on every rank: its input errors stop all).
+    const SetupConversion converted =
+      conversion && particle_weight_ > 0 && n_ranks > 1 ? conversion(*this) : SetupConversion();
+    imbalance_by_count_ = 0;
 
     // Rank 0 meshes every body in serial and merges them into one mesh. Vertices are not merged
     // across bodies: bodies that touch stay separate. The other ranks wait without spinning
@@ -820,10 +808,7 @@ namespace shard::mesh
     std::vector<CellRecord> mine;
     if (root)
       {
-        const std::uint64_t        n_cells = cells.size();
-        std::vector<std::uint64_t> first(n_ranks + 1);
-        for (unsigned int r = 0; r <= n_ranks; ++r)
-          first[r] = n_cells * r / n_ranks;
+        const std::uint64_t n_cells = cells.size();
         // Cells at each vertex (compressed rows).
         std::vector<std::uint64_t> at_vertex_start(vertices.size() + 1, 0), at_vertex;
         for (const auto &c : cells)
@@ -861,6 +846,77 @@ namespace shard::mesh
         std::vector<std::uint64_t> by_order(n_cells);
         for (std::uint64_t c = 0; c < n_cells; ++c)
           by_order[order[c]] = c;
+        // Work of each cell in units of 1/1000 element: 1000 for an element; a cell converted
+        // at set-up carries its share 1/n of each of its nodes (n converted cells at the node),
+        // times the particle weight.
+        std::vector<double> work(n_cells, 1000.);
+        // first[r]: the first position of rank r. By count (no particles at set-up): equal
+        // ranges, floor(n_cells r / n_ranks), as p4est cut its coarse cells.
+        std::vector<std::uint64_t> first(n_ranks + 1);
+        for (unsigned int r = 0; r <= n_ranks; ++r)
+          first[r] = n_cells * r / n_ranks;
+        bool weighted = false;
+        if (converted)
+          {
+            std::vector<char> is_converted(n_cells, 0);
+            bool              any = false;
+            for (std::uint64_t c = 0; c < n_cells; ++c)
+              {
+                // The centre as deal.II computes it (the vertices summed in order, over 8), so the
+                // rule decides as Conversion::prepare() does on the triangulation.
+                Point<3> centre;
+                for (const auto v : cells[c].vertices)
+                  centre += vertices[v];
+                centre /= 8.;
+                is_converted[c] = converted(cells[c].material_id, {{centre[0], centre[1], centre[2]}});
+                any |= is_converted[c];
+              }
+            if (any)
+              {
+                std::vector<unsigned int> n_converted(vertices.size(), 0);
+                for (std::uint64_t c = 0; c < n_cells; ++c)
+                  if (is_converted[c])
+                    for (const auto v : cells[c].vertices)
+                      ++n_converted[v];
+                for (std::uint64_t c = 0; c < n_cells; ++c)
+                  if (is_converted[c])
+                    {
+                      double particles = 0;
+                      for (const auto v : cells[c].vertices)
+                        particles += 1. / n_converted[v];
+                      work[c] = 1000. * particle_weight_ * particles;
+                    }
+                // What the partition by count would carry (reported as the imbalance before).
+                std::vector<double> by_count(n_ranks, 0.);
+                for (unsigned int r = 0; r < n_ranks; ++r)
+                  for (std::uint64_t k = first[r]; k < first[r + 1]; ++k)
+                    by_count[r] += work[by_order[k]] / 1000.;
+                const double total = std::accumulate(by_count.begin(), by_count.end(), 0.);
+                imbalance_by_count_ = *std::max_element(by_count.begin(), by_count.end()) / (total / n_ranks);
+                weighted            = true;
+              }
+          }
+        // Weighted: the order is cut into ranges of equal work. The cell whose preceding work is
+        // W goes to rank floor(W n_ranks / total), p4est's rule (integer weights of at least 1).
+        if (weighted)
+          {
+            std::vector<std::uint64_t> weight(n_cells);
+            std::uint64_t              total = 0;
+            for (std::uint64_t k = 0; k < n_cells; ++k)
+              total += weight[k] = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::lround(work[by_order[k]])));
+            std::fill(first.begin(), first.end(), n_cells);
+            std::uint64_t before = 0;
+            unsigned int  next   = 0;
+            for (std::uint64_t k = 0; k < n_cells; ++k)
+              {
+                const auto r = std::min<std::uint64_t>(
+                  n_ranks - 1, static_cast<std::uint64_t>(static_cast<long double>(before) * n_ranks / total));
+                while (next <= r)
+                  first[next++] = k;
+                before += weight[k];
+              }
+          }
+        std::vector<double>().swap(work);
         const auto owner = [&](const std::uint64_t c) {
           return static_cast<unsigned int>(std::upper_bound(first.begin(), first.end(), order[c]) - first.begin() - 1);
         };
@@ -883,7 +939,6 @@ namespace shard::mesh
                 auto &rec    = records[i];
                 const auto &c = cells[local[i]];
                 rec.id       = local[i];
-                rec.order    = order[local[i]];
                 rec.owner    = owner(local[i]);
                 rec.material = c.material_id;
                 for (unsigned int v = 0; v < 8; ++v)
@@ -934,121 +989,6 @@ namespace shard::mesh
                 reference_.local_element(partitioner_->global_to_local(dof)) = cell->vertex(v)[c];
               }
           }
-  }
-
-  double
-  Discretization::repartition(const std::vector<bool> &converted_cells)
-  {
-    if (particle_weight_ == 0 || Utilities::MPI::n_mpi_processes(comm_) == 1)
-      return 0;
-    // Converted cells at each vertex (owned and ghost cells see all cells at their vertices).
-    std::vector<unsigned int> n_converted(triangulation_.n_vertices(), 0);
-    for (const auto &cell : triangulation_.active_cell_iterators())
-      if (!cell->is_artificial() && converted_cells[cell->active_cell_index()])
-        for (const unsigned int v : cell->vertex_indices())
-          ++n_converted[cell->vertex_index(v)];
-    // Work of a cell in units of 1/1000 element: an element, or the shares of its particles.
-    const auto work = [&](const dealii::Triangulation<3>::cell_iterator &cell) {
-      if (!cell->is_active() || !converted_cells[cell->active_cell_index()])
-        return 1000.;
-      double particles = 0;
-      for (const unsigned int v : cell->vertex_indices())
-        particles += 1. / n_converted[cell->vertex_index(v)];
-      return 1000. * particle_weight_ * particles;
-    };
-    double owned_work = 0;
-    for (const auto &cell : triangulation_.active_cell_iterators())
-      if (cell->is_locally_owned())
-        owned_work += work(cell) / 1000.;
-    const double before = Utilities::MPI::max(owned_work, comm_) /
-                          (Utilities::MPI::sum(owned_work, comm_) / Utilities::MPI::n_mpi_processes(comm_));
-    // New owners: the cells in the partition order (each rank owns a contiguous range of it)
-    // cut into ranges of equal work, as p4est's weighted partition did.
-    std::vector<std::array<std::uint64_t, 3>> owned; // (order, coarse id, weight)
-    for (const auto &cell : triangulation_.active_cell_iterators())
-      if (cell->is_locally_owned())
-        owned.push_back({{cell_order_[cell->active_cell_index()], cell->id().get_coarse_cell_id(),
-                          std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::lround(work(cell))))}});
-    std::sort(owned.begin(), owned.end());
-    std::uint64_t local_weight = 0, offset = 0;
-    for (const auto &o : owned)
-      local_weight += o[2];
-    int ierr = MPI_Exscan(&local_weight, &offset, 1, MPI_UINT64_T, MPI_SUM, comm_);
-    AssertThrowMPI(ierr);
-    const unsigned int  n_ranks = Utilities::MPI::n_mpi_processes(comm_), me = Utilities::MPI::this_mpi_process(comm_);
-    if (me == 0)
-      offset = 0;
-    const std::uint64_t total = Utilities::MPI::sum(local_weight, comm_);
-    std::map<std::uint64_t, unsigned int> new_owner; // of own and ghost cells, by coarse id
-    {
-      std::uint64_t before_cell = offset;
-      for (const auto &o : owned)
-        {
-          const auto r = static_cast<unsigned int>(
-            static_cast<long double>(before_cell) * n_ranks / std::max<std::uint64_t>(total, 1));
-          new_owner[o[1]] = std::min(r, n_ranks - 1);
-          before_cell += o[2];
-        }
-    }
-    const auto cells_at_vertex = GridTools::vertex_to_cell_map(triangulation_);
-    // Ghost cells learn their new owner from their current owner.
-    {
-      std::map<unsigned int, std::vector<std::pair<std::uint64_t, unsigned int>>> tell;
-      for (const auto &cell : triangulation_.active_cell_iterators())
-        if (cell->is_locally_owned())
-          {
-            std::set<unsigned int> ranks;
-            for (const unsigned int v : cell->vertex_indices())
-              for (const auto &other : cells_at_vertex[cell->vertex_index(v)])
-                if (other->is_ghost())
-                  ranks.insert(other->subdomain_id());
-            for (const auto r : ranks)
-              tell[r].emplace_back(cell->id().get_coarse_cell_id(), new_owner[cell->id().get_coarse_cell_id()]);
-          }
-      for (const auto &[from, list] : Utilities::MPI::some_to_some(comm_, tell))
-        for (const auto &[id, r] : list)
-          new_owner[id] = r;
-    }
-    // Each own cell goes to its new owner and to the new owners of the cells at its vertices.
-    std::map<unsigned int, std::vector<char>> out; // CellRecords as bytes
-    for (const auto &cell : triangulation_.active_cell_iterators())
-      if (cell->is_locally_owned())
-        {
-          const auto              id = cell->id().get_coarse_cell_id();
-          std::set<unsigned int>  to{new_owner.at(id)};
-          for (const unsigned int v : cell->vertex_indices())
-            for (const auto &other : cells_at_vertex[cell->vertex_index(v)])
-              to.insert(new_owner.at(other->id().get_coarse_cell_id()));
-          CellRecord rec;
-          rec.id       = id;
-          rec.order    = cell_order_[cell->active_cell_index()];
-          rec.owner    = new_owner.at(id);
-          rec.material = cell->material_id();
-          for (unsigned int v = 0; v < 8; ++v)
-            {
-              rec.vertex[v] = vertex_key_[cell->vertex_index(v)];
-              for (unsigned int d = 0; d < 3; ++d)
-                rec.x[v][d] = cell->vertex(v)[d];
-            }
-          for (unsigned int f = 0; f < 6; ++f)
-            rec.boundary[f] = cell->face(f)->at_boundary() ? cell->face(f)->boundary_id() :
-                                                             numbers::internal_face_boundary_id;
-          const auto *bytes = reinterpret_cast<const char *>(&rec);
-          for (const auto r : to)
-            out[r].insert(out[r].end(), bytes, bytes + sizeof(rec));
-        }
-    std::vector<char> bytes;
-    if (out.count(me))
-      bytes = std::move(out[me]), out.erase(me);
-    for (auto &[from, part] : Utilities::MPI::some_to_some(comm_, out))
-      bytes.insert(bytes.end(), part.begin(), part.end());
-    out.clear();
-    std::vector<CellRecord> mine(bytes.size() / sizeof(CellRecord));
-    std::memcpy(static_cast<void *>(mine.data()), bytes.data(), mine.size() * sizeof(CellRecord));
-    std::vector<char>().swap(bytes);
-    create_from(mine);
-    distribute();
-    return before;
   }
 
   std::vector<unsigned int>

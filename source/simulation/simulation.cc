@@ -157,7 +157,13 @@ namespace shard
   {
     const auto   start     = Clock::now();
     const double cpu_start = base::PhaseTimes::thread_cpu_time();
-    discretization_.prepare(source_);
+    // The partition is weighted by the particles of the set-up conversion (B - Mesh/particle
+    // weight); rank 0 computes it on the serial mesh. (Also on a restart: the partition of the
+    // set-up, as in the run that wrote the checkpoint.)
+    discretization_.prepare(source_, [this](const mesh::Discretization &d) {
+      return conversion_.converted_at_setup(d, particles_.body_names(), source_);
+    });
+    imbalance_before_ = discretization_.imbalance_by_count();
     for (const auto &b : discretization_.bodies())
       if (!materials_.has(b.material))
         source_.fail(sections::mesh + "/" + b.name + "/material", b.material,
@@ -166,10 +172,6 @@ namespace shard
     // Particles first: their two-hop stencil widens the ghost set, which changes local indices.
     conversion_.prepare(discretization_, particles_.body_names(), source_);
     check_rigid_bodies();
-    // Cells weighted by their particles (B - Mesh/particle weight); the flags follow the new partition.
-    // (Also on a restart: the partition of the set-up, as in the run that wrote the checkpoint.)
-    if (conversion_.n_converted() > 0 && (imbalance_before_ = discretization_.repartition(conversion_.converted_cells())) > 0)
-      conversion_.prepare(discretization_, particles_.body_names(), source_);
     checkpoint_.prepare(discretization_, output_.directory(), fingerprint(), source_);
     if (checkpoint_.restarting())
       restore_topology();

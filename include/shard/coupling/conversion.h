@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <array>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -119,6 +120,16 @@ namespace shard::coupling
     prepare(const mesh::Discretization &discretization, const std::vector<std::string> &particle_bodies,
             const base::PrmSource &source);
 
+    /**
+     * @brief The rule of prepare() as a function of a cell's body and reference centre, for the
+     * first partition, made before the mesh exists (Discretization::prepare() weights the cells
+     * by it). Needs only the bodies of @p discretization (`bodies()`), not its cells.
+     * @throws base::InputError (through @p source) for an unknown body name.
+     */
+    std::function<bool(unsigned int body, const std::array<double, 3> &centre)>
+    converted_at_setup(const mesh::Discretization &discretization, const std::vector<std::string> &particle_bodies,
+                       const base::PrmSource &source) const;
+
     /// Flag per active cell index (owned and ghost cells): converted to particles.
     const std::vector<bool> &
     converted_cells() const
@@ -198,6 +209,11 @@ namespace shard::coupling
     }
 
   private:
+    /// The set-up regions of prepare(): every particle body whole, then the named regions.
+    std::vector<Region>
+    setup_regions(const mesh::Discretization &discretization, const std::vector<std::string> &particle_bodies,
+                  const base::PrmSource &source) const;
+
     std::string                                               region_names_text_;
     std::vector<std::string>                                  region_names_;
     std::map<std::string, std::unique_ptr<RegionParameters>> declared_;

@@ -15,6 +15,7 @@
 #include <deal.II/lac/la_parallel_vector.h>
 
 #include <array>
+#include <functional>
 #include <map>
 #include <memory>
 #include <set>
@@ -140,29 +141,34 @@ namespace shard::mesh
     void
     check_parameters(const base::PrmSource &source) const override;
 
+    /// Whether the cell of body `body` with reference centre `centre` becomes particles at set-up.
+    using SetupConversion = std::function<bool(unsigned int body, const std::array<double, 3> &centre)>;
+
     /**
      * @brief Builds the meshes, the triangulation, DoFs, partitioner and reference positions.
+     *
+     * With more than one rank and `particle weight` > 0, the partition is weighted by work: 1 per
+     * element, `particle weight` per particle, a cell converted at set-up (by the rule that
+     * @p conversion returns, given the bodies) carrying 1/n of each of its nodes (n = converted
+     * cells at the node). Rank 0 computes the weights on the serial mesh, so no repartition
+     * follows.
      * @param source for relative mesh paths and error messages.
+     * @param conversion makes the set-up conversion rule once the bodies are known (empty: none).
      * @note Collective.
      */
     void
-    prepare(const base::PrmSource &source);
+    prepare(const base::PrmSource &source,
+            const std::function<SetupConversion(const Discretization &)> &conversion = {});
 
     /**
-     * @brief Repartitions the cells over the ranks by work: 1 per element, `particle weight`
-     * per particle, a converted cell (@p converted_cells, by active cell index) carrying 1/n of
-     * each of its nodes (n = converted cells at the node), and rebuilds DoFs, partitioner and
-     * reference positions. The cells stay in contiguous ranges of the partition order; each
-     * rank sends its own cells to their new owner and to the ranks that need them as ghosts
-     * (point to point). Nothing is done on one rank or with `particle weight` = 0. Call it
-     * before any component stores local indices; every local index changes, so cell flags by
-     * active cell index must be recomputed.
-     * @return the imbalance (largest over mean owned work) of the partition before, or 0 if
-     * nothing was done.
-     * @note Collective.
+     * @brief The imbalance (largest over mean owned work) that the partition by cell count
+     * would have had, when prepare() weighted the partition; else 0.
      */
     double
-    repartition(const std::vector<bool> &converted_cells);
+    imbalance_by_count() const
+    {
+      return imbalance_by_count_;
+    }
 
     /// Default of `B - Mesh/particle weight`: the measured cost of a particle in units of an
     /// element (phase 6 / phase 5 per item, doc/performance.md "MPI scaling").
@@ -312,13 +318,12 @@ namespace shard::mesh
     std::vector<std::string>                                body_names_ = {"body"};
     std::string                                             body_names_text_ = "body";
     double                                                  particle_weight_ = default_particle_weight;
+    double                                                  imbalance_by_count_ = 0;
     int                                                     max_cells_       = 4000000;
     std::vector<std::set<unsigned int>>                     body_boundary_ids_;
     std::vector<BodyParameters>                             bodies_;
     std::map<std::string, std::unique_ptr<BodyParameters>> declared_;
     Triangulation                                           triangulation_;
-    /// Partition order of each local cell, by active cell index (CellRecord::order).
-    std::vector<std::uint64_t>                              cell_order_;
     /// Merged-mesh index of each local vertex (vertex_key()).
     std::vector<std::uint64_t>                              vertex_key_;
     std::uint64_t                                           n_global_vertices_ = 0;
