@@ -10,13 +10,11 @@
 #include <deal.II/fe/fe_q.h>
 #include <deal.II/grid/grid_generator.h>
 #include <deal.II/grid/grid_in.h>
-#include <deal.II/grid/grid_tools.h>
 #include <deal.II/grid/tria.h>
 #include <deal.II/grid/tria_description.h>
 
 #include <algorithm>
 #include <chrono>
-#include <cstring>
 #include <limits>
 #include <numeric>
 #include <thread>
@@ -639,114 +637,114 @@ namespace shard::mesh
     std::vector<std::array<types::boundary_id, 6>>         boundary;
     body_boundary_ids_.assign(bodies_.size(), {});
     const auto build = [&]() {
-        // The model's size, before anything is meshed: every generated body's cell count.
-        double total_cells = 0;
-        for (const auto &b : bodies_)
-          {
-            auto [cells, key] = generated_cells(b);
-            if (b.shape == "gmsh")
-              {
-                // The file's structure, line by line, before deal.II's reader sees it (a bounded read:
-                // GridIn allocates by counts it reads); its hexahedra count towards the bound.
-                const std::string path =
-                  (!b.mesh_file.empty() && b.mesh_file[0] == '/') ? b.mesh_file : source.directory() + b.mesh_file;
-                std::ifstream in(path, std::ios::binary);
-                if (!in)
-                  source.fail(sections::mesh + "/" + b.name + "/mesh file", b.mesh_file,
-                              "cannot open '" + path + "'. It must be a readable Gmsh .msh file of hexahedra (path "
-                              "relative to the .prm file).");
-                try
-                  {
-                    cells = static_cast<double>(check_gmsh(in).n_hexahedra);
-                  }
-                catch (const GmshError &e)
-                  {
-                    source.fail(sections::mesh + "/" + b.name + "/mesh file", b.mesh_file,
-                                "'" + path + "' is not a readable Gmsh mesh of hexahedra: " + e.what());
-                  }
-              }
-            total_cells += cells;
-            if (!(total_cells <= max_cells_))
-              {
-                std::ostringstream value, count, total;
-                if (key == "mesh file")
-                  value << b.mesh_file;
-                else
-                  value << (key == "refinement" ? static_cast<double>(b.refinement) : b.element_size);
-                if (std::isfinite(cells))
-                  count << std::setprecision(cells < 1e15 ? 15 : 3) << cells;
-                else
-                  count << "more than 1e308";
-                total << std::setprecision(total_cells < 1e15 ? 15 : 3) << total_cells;
-                source.fail(sections::mesh + "/" + b.name + "/" + key, value.str(),
-                            "gives " + count.str() + " cells" +
-                              (total_cells > cells ? " (the model with the bodies before it: " + total.str() + ")" : std::string()) +
-                              ", more than 'B - Mesh/max cells' = " + std::to_string(max_cells_) +
-                              " (about 2.7 KB of memory per cell; doc/manual/user_guide.md, Bad input). Use a larger element "
-                              "size, or raise 'max cells' if the machine has the memory.");
-              }
-          }
-        body_boundary_ids_.assign(bodies_.size(), {});
-        for (unsigned int k = 0; k < bodies_.size(); ++k)
-          {
-            dealii::Triangulation<3> tria;
-            const auto       transform = build_body(tria, bodies_[k], source);
+      // The model's size, before anything is meshed: every generated body's cell count.
+      double total_cells = 0;
+      for (const auto &b : bodies_)
+        {
+          auto [cells, key] = generated_cells(b);
+          if (b.shape == "gmsh")
             {
-              // Degenerate elements are refused here, naming the body's key, not found as an
-              // inverted element at step 1.
-              const auto       &b     = bodies_[k];
-              const WorstCell   worst = worst_cell(tria, transform);
-              if (!(worst.quality > 1e-9))
+              // The file's structure, line by line, before deal.II's reader sees it (a bounded read:
+              // GridIn allocates by counts it reads); its hexahedra count towards the bound.
+              const std::string path =
+                (!b.mesh_file.empty() && b.mesh_file[0] == '/') ? b.mesh_file : source.directory() + b.mesh_file;
+              std::ifstream in(path, std::ios::binary);
+              if (!in)
+                source.fail(sections::mesh + "/" + b.name + "/mesh file", b.mesh_file,
+                            "cannot open '" + path + "'. It must be a readable Gmsh .msh file of hexahedra (path "
+                            "relative to the .prm file).");
+              try
                 {
-                  const std::string key = b.shape == "gmsh" ? (b.mesh_scale < 1e-100 ? "mesh scale" : "mesh file") :
-                                          b.shape == "box"  ? "upper corner" :
-                                          b.shape == "rod"  ? (b.width < b.length ? "width" : "length") :
-                                                              "radius";
-                  std::ostringstream value, why;
-                  if (key == "mesh file" || key == "upper corner")
-                    value << (key == "mesh file" ? b.mesh_file : b.upper_corner);
-                  else
-                    value << (key == "mesh scale" ? b.mesh_scale : key == "width" ? b.width : key == "length" ? b.length : b.radius);
-                  why << std::setprecision(4) << "element " << worst.index + 1 << " of body '" << b.name << "' (centre "
-                      << worst.centre[0] << ", " << worst.centre[1] << ", " << worst.centre[2] << " m) is "
-                      << (!(worst.quality > -1e299) ? "not finite" : worst.quality > 0 ? "degenerate" : worst.volume > 0 ? "inverted at a corner" : "of zero or negative volume")
-                      << " (smallest corner Jacobian / longest edge^3 = " << worst.quality
-                      << "; a cube has 1, shard needs > 1e-9): the body's dimensions, element size"
-                      << (b.shape == "gmsh" ? ", the file's vertices and mesh scale" : "")
-                      << " must give elements of finite, positive volume.";
-                  source.fail(sections::mesh + "/" + b.name + "/" + key, value.str(), why.str());
+                  cells = static_cast<double>(check_gmsh(in).n_hexahedra);
                 }
-              for (const auto &cell : tria.active_cell_iterators())
-                for (const unsigned int f : cell->face_indices())
-                  if (cell->face(f)->at_boundary())
-                    body_boundary_ids_[k].insert(cell->face(f)->boundary_id());
+              catch (const GmshError &e)
+                {
+                  source.fail(sections::mesh + "/" + b.name + "/mesh file", b.mesh_file,
+                              "'" + path + "' is not a readable Gmsh mesh of hexahedra: " + e.what());
+                }
             }
-            std::map<unsigned int, unsigned int> vmap;
-            const auto global_vertex = [&](const unsigned int v, const Point<3> &p) {
-              const auto [it, inserted] = vmap.emplace(v, vertices.size());
-              if (inserted)
-                vertices.push_back(transform(p));
-              return it->second;
-            };
-            for (const auto &cell : tria.active_cell_iterators())
+          total_cells += cells;
+          if (!(total_cells <= max_cells_))
+            {
+              std::ostringstream value, count, total;
+              if (key == "mesh file")
+                value << b.mesh_file;
+              else
+                value << (key == "refinement" ? static_cast<double>(b.refinement) : b.element_size);
+              if (std::isfinite(cells))
+                count << std::setprecision(cells < 1e15 ? 15 : 3) << cells;
+              else
+                count << "more than 1e308";
+              total << std::setprecision(total_cells < 1e15 ? 15 : 3) << total_cells;
+              source.fail(sections::mesh + "/" + b.name + "/" + key, value.str(),
+                          "gives " + count.str() + " cells" +
+                            (total_cells > cells ? " (the model with the bodies before it: " + total.str() + ")" : std::string()) +
+                            ", more than 'B - Mesh/max cells' = " + std::to_string(max_cells_) +
+                            " (about 2.7 KB of memory per cell; doc/manual/user_guide.md, Bad input). Use a larger element "
+                            "size, or raise 'max cells' if the machine has the memory.");
+            }
+        }
+      body_boundary_ids_.assign(bodies_.size(), {});
+      for (unsigned int k = 0; k < bodies_.size(); ++k)
+        {
+          dealii::Triangulation<3> tria;
+          const auto       transform = build_body(tria, bodies_[k], source);
+          {
+            // Degenerate elements are refused here, naming the body's key, not found as an
+            // inverted element at step 1.
+            const auto       &b     = bodies_[k];
+            const WorstCell   worst = worst_cell(tria, transform);
+            if (!(worst.quality > 1e-9))
               {
-                if (cell->reference_cell() != ReferenceCells::Hexahedron)
-                  throw base::InputError(sections::mesh + "/" + bodies_[k].name +
-                                         ": the mesh must consist of hexahedra only.");
-                CellData<3> c;
-                for (unsigned int v = 0; v < 8; ++v)
-                  c.vertices[v] = global_vertex(cell->vertex_index(v), cell->vertex(v));
-                c.material_id = k;
-                cells.push_back(c);
-                boundary.emplace_back();
-                boundary.back().fill(numbers::internal_face_boundary_id);
-                for (const unsigned int f : cell->face_indices())
-                  if (cell->face(f)->at_boundary())
-                    {
-                      boundary.back()[f] = cell->face(f)->boundary_id();
-                    }
+                const std::string key = b.shape == "gmsh" ? (b.mesh_scale < 1e-100 ? "mesh scale" : "mesh file") :
+                                        b.shape == "box"  ? "upper corner" :
+                                        b.shape == "rod"  ? (b.width < b.length ? "width" : "length") :
+                                                            "radius";
+                std::ostringstream value, why;
+                if (key == "mesh file" || key == "upper corner")
+                  value << (key == "mesh file" ? b.mesh_file : b.upper_corner);
+                else
+                  value << (key == "mesh scale" ? b.mesh_scale : key == "width" ? b.width : key == "length" ? b.length : b.radius);
+                why << std::setprecision(4) << "element " << worst.index + 1 << " of body '" << b.name << "' (centre "
+                    << worst.centre[0] << ", " << worst.centre[1] << ", " << worst.centre[2] << " m) is "
+                    << (!(worst.quality > -1e299) ? "not finite" : worst.quality > 0 ? "degenerate" : worst.volume > 0 ? "inverted at a corner" : "of zero or negative volume")
+                    << " (smallest corner Jacobian / longest edge^3 = " << worst.quality
+                    << "; a cube has 1, shard needs > 1e-9): the body's dimensions, element size"
+                    << (b.shape == "gmsh" ? ", the file's vertices and mesh scale" : "")
+                    << " must give elements of finite, positive volume.";
+                source.fail(sections::mesh + "/" + b.name + "/" + key, value.str(), why.str());
               }
+            for (const auto &cell : tria.active_cell_iterators())
+              for (const unsigned int f : cell->face_indices())
+                if (cell->face(f)->at_boundary())
+                  body_boundary_ids_[k].insert(cell->face(f)->boundary_id());
           }
+          std::map<unsigned int, unsigned int> vmap;
+          const auto global_vertex = [&](const unsigned int v, const Point<3> &p) {
+            const auto [it, inserted] = vmap.emplace(v, vertices.size());
+            if (inserted)
+              vertices.push_back(transform(p));
+            return it->second;
+          };
+          for (const auto &cell : tria.active_cell_iterators())
+            {
+              if (cell->reference_cell() != ReferenceCells::Hexahedron)
+                throw base::InputError(sections::mesh + "/" + bodies_[k].name +
+                                       ": the mesh must consist of hexahedra only.");
+              CellData<3> c;
+              for (unsigned int v = 0; v < 8; ++v)
+                c.vertices[v] = global_vertex(cell->vertex_index(v), cell->vertex(v));
+              c.material_id = k;
+              cells.push_back(c);
+              boundary.emplace_back();
+              boundary.back().fill(numbers::internal_face_boundary_id);
+              for (const unsigned int f : cell->face_indices())
+                if (cell->face(f)->at_boundary())
+                  {
+                    boundary.back()[f] = cell->face(f)->boundary_id();
+                  }
+            }
+        }
     };
     // Outcome of rank 0: 0 ok (then the boundary ids), 1 input error, 2 other error (then the text).
     std::vector<char> outcome;
@@ -768,12 +766,17 @@ namespace shard::mesh
             kind = 2, text = base::exception_reason(e), error = std::current_exception();
           }
         outcome.push_back(kind);
+        // Numbers as 4 bytes each: a count per body, then its ids.
+        const auto put = [&](const std::uint32_t value) {
+          const char *bytes = reinterpret_cast<const char *>(&value);
+          outcome.insert(outcome.end(), bytes, bytes + 4);
+        };
         if (kind == 0)
           for (const auto &ids : body_boundary_ids_)
             {
-              outcome.push_back(static_cast<char>(ids.size()));
+              put(ids.size());
               for (const auto id : ids)
-                outcome.push_back(static_cast<char>(id));
+                put(id);
             }
         else
           outcome.insert(outcome.end(), text.begin(), text.end());
@@ -792,12 +795,19 @@ namespace shard::mesh
               throw base::InputError(text);
             throw std::runtime_error(text);
           }
-        std::size_t k = 1;
+        std::size_t k   = 1;
+        const auto  get = [&]() {
+          AssertThrow(k + 4 <= outcome.size(), ExcMessage("a short set-up message from rank 0"));
+          std::uint32_t value;
+          std::copy_n(outcome.begin() + k, 4, reinterpret_cast<char *>(&value));
+          k += 4;
+          return value;
+        };
         for (auto &ids : body_boundary_ids_)
           {
-            const unsigned int n = static_cast<unsigned char>(outcome.at(k++));
-            for (unsigned int i = 0; i < n; ++i)
-              ids.insert(static_cast<unsigned char>(outcome.at(k++)));
+            const std::uint32_t n = get();
+            for (std::uint32_t i = 0; i < n; ++i)
+              ids.insert(get());
           }
       }
 
