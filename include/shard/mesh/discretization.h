@@ -121,13 +121,14 @@ namespace shard::mesh
    *
    * All bodies are meshed in serial on rank 0 and merged into one mesh (the model's cells in
    * input order; vertices are not merged across bodies). Rank 0 orders the cells hierarchically
-   * (as p4est ordered its coarse cells), cuts that order into contiguous ranges and sends each
-   * rank its own cells and the layer of cells that share a vertex with them; every rank then holds only that part, as a
+   * (as p4est ordered its coarse cells), cuts that order into contiguous ranges (by count, or by
+   * work with particles at set-up) and sends each rank its own cells and the layer of cells that
+   * share a vertex with them; every rank then holds only that part, as a
    * `parallel::fullydistributed::Triangulation` (doc/manual/cluster.md, "The distributed
    * mesh"). Every cell is a coarse cell; its coarse cell id is its index in the merged mesh, and
-   * vertex_key() gives a vertex's index there: both are the same at any rank count. Cell material
-   * id = body index; each body keeps its own boundary ids. The three DOFs of a vertex are
-   * consecutive and owned by one rank (checked in prepare()).
+   * vertex_key() gives a vertex's index there: both are the same at any rank count. Cell
+   * material id = body index; each body keeps its own boundary ids. The three DOFs of a vertex
+   * are consecutive and owned by one rank (checked in prepare()).
    */
   class Discretization : public base::ParameterOwner
   {
