@@ -247,7 +247,7 @@ namespace shard::contact
   }
 
   void
-  NodeToSurface::keep(const unsigned int i, const SegmentHit &h, const unsigned int g)
+  NodeToSurface::keep(const ContactNodes &nodes, const unsigned int i, const SegmentHit &h, const unsigned int g)
   {
     // (Preferring the faces of the slave's last direction instead was tried: a slave whose
     // first hit was a side face of the target, one face spacing deep, then kept it with that
@@ -259,8 +259,29 @@ namespace shard::contact
         slaves_.push_back(i);
         return;
       }
-    if (std::abs(h.gap) < std::abs(hits_[best_[i]].first.gap))
+    // Ties (a slave on the apex of faces that meet symmetrically, the nose point of the
+    // projectile: the same depth under four faces to the last digit) go to the face of the
+    // smallest reference position, not to the first one found: the local order of the faces
+    // depends on the partition, and a different face gave the slave another normal, so runs at 1
+    // and 2 ranks parted by 1e-8 within three steps (doc/manual/contact.md, "Ties").
+    const double now = std::abs(h.gap), kept = std::abs(hits_[best_[i]].first.gap);
+    if (now < kept - tie_tolerance * kept ||
+        (now <= kept + tie_tolerance * kept && reference_before(nodes, g, hits_[best_[i]].second)))
       hits_[best_[i]] = {h, g};
+  }
+
+  bool
+  NodeToSurface::reference_before(const ContactNodes &nodes, const unsigned int a, const unsigned int b)
+  {
+    // The four reference positions of each face, sorted: the same on every rank and partition.
+    const auto sorted = [&](const unsigned int g) {
+      std::array<Vec3, 4> x;
+      for (unsigned int v = 0; v < 4; ++v)
+        x[v] = nodes.nodes[nodes.segments[g].node[v]].X;
+      std::sort(x.begin(), x.end());
+      return x;
+    };
+    return a != b && sorted(a) < sorted(b);
   }
 
   bool
@@ -352,7 +373,7 @@ namespace shard::contact
               missed_.push_back({{i, g}});
             continue;
           }
-        keep(i, h, g);
+        keep(nodes, i, h, g);
       }
   }
 
@@ -365,10 +386,16 @@ namespace shard::contact
     // one face spacing deep, with the full spring of that depth (the head-on bars at 100 m/s:
     // 68 J stored from nothing, the run stopped at 6.7 us). A slave in contact keeps the face of
     // its direction it lies under, its contact point clamped onto the face.
+    // Whether a slave already has a face of its direction is decided before any retry: a retry
+    // hit must not hide the other faces of the valley (the nearest of them is kept, whatever
+    // their order; taking the first gave runs at 1 and 2 ranks different faces).
+    std::size_t n_retry = 0;
+    for (const auto &[i, g] : missed_)
+      if (!(best_[i] >= 0 && along(planes_[hits_[best_[i]].second].normal, i)))
+        missed_[n_retry++] = {{i, g}};
+    missed_.resize(n_retry);
     for (const auto &[i, g] : missed_)
       {
-        if (best_[i] >= 0 && along(planes_[hits_[best_[i]].second].normal, i))
-          continue;
         const auto         &seg = nodes.segments[g];
         std::array<Vec3, 4> xs;
         for (unsigned int v = 0; v < 4; ++v)
@@ -376,7 +403,7 @@ namespace shard::contact
         const SegmentHit h =
           point_segment(nodes.position(i), xs, reach_depth(i, nodes.nodes[seg.node[0]].spacing), 0.05);
         if (h.hit)
-          keep(i, h, g);
+          keep(nodes, i, h, g);
       }
   }
 

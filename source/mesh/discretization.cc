@@ -5,8 +5,6 @@
 #include <shard/mesh/gmsh_check.h>
 
 #include <deal.II/dofs/dof_tools.h>
-#include <deal.II/lac/dynamic_sparsity_pattern.h>
-#include <deal.II/lac/sparsity_tools.h>
 #include <deal.II/fe/fe_q.h>
 #include <deal.II/grid/grid_generator.h>
 #include <deal.II/grid/grid_in.h>
@@ -811,10 +809,10 @@ namespace shard::mesh
           }
       }
 
-    // The first partition: the cells in the hierarchical order of their vertex graph (deal.II's
-    // SparsityTools::reorder_hierarchical, the order in which p4est kept the coarse cells), cut
-    // into contiguous ranges of equal cell count, as p4est cut them. Rank 0 sends each rank its
-    // own cells and every cell that shares a vertex with them (the ghost layer), one rank at a time.
+    // The first partition: the cells in the order of a Hilbert curve through their centres, cut
+    // into contiguous ranges of equal cell count (or of equal work, below). Rank 0 sends each rank
+    // its own cells and every cell that shares a vertex with them (the ghost layer), one rank at a
+    // time.
     std::vector<CellRecord> mine;
     if (root)
       {
@@ -837,19 +835,50 @@ namespace shard::mesh
         std::vector<types::global_dof_index> order(n_cells);
         if (n_ranks > 1)
           {
-            // Each row added at once, sorted (adding entry by entry took most of the time).
-            DynamicSparsityPattern             graph(n_cells, n_cells);
-            std::vector<types::global_dof_index> row;
-            for (std::uint64_t c = 0; c < n_cells; ++c)
+            // Body by body (in input order), the cells along a Hilbert curve through their
+            // centres, on a grid of 2^20 equal steps per direction over the body's largest extent
+            // (ties by index). Cheap: 0.1 s for the Hanchak mesh, where ordering the vertex graph
+            // took 3.7 s. A body stays in one piece of the order, so two bodies in contact meet
+            // at the ranks' boundaries only where their parts meet (the head-on bars at 4 ranks:
+            // one curve through both sent 2.2 times the contact halo).
+            std::vector<std::array<std::uint64_t, 3>> key(n_cells);
+            for (std::uint64_t first_cell = 0; first_cell < n_cells;)
               {
-                row.clear();
-                for (const auto v : cells[c].vertices)
-                  row.insert(row.end(), at_vertex.begin() + at_vertex_start[v], at_vertex.begin() + at_vertex_start[v + 1]);
-                std::sort(row.begin(), row.end());
-                row.erase(std::unique(row.begin(), row.end()), row.end());
-                graph.add_entries(c, row.begin(), row.end(), true);
+                std::uint64_t end = first_cell;
+                while (end < n_cells && cells[end].material_id == cells[first_cell].material_id)
+                  ++end;
+                std::vector<Point<3>> centre(end - first_cell);
+                Point<3>              low, high;
+                for (std::uint64_t c = first_cell; c < end; ++c)
+                  {
+                    auto &x = centre[c - first_cell];
+                    for (const auto v : cells[c].vertices)
+                      x += vertices[v];
+                    x /= 8.;
+                    for (unsigned int d = 0; d < 3; ++d)
+                      {
+                        low[d]  = c == first_cell ? x[d] : std::min(low[d], x[d]);
+                        high[d] = c == first_cell ? x[d] : std::max(high[d], x[d]);
+                      }
+                  }
+                const double extent = std::max({high[0] - low[0], high[1] - low[1], high[2] - low[2], 1e-300});
+                const int    bits   = 20;
+                std::vector<std::array<std::uint64_t, 3>> grid(centre.size());
+                for (std::size_t i = 0; i < centre.size(); ++i)
+                  for (unsigned int d = 0; d < 3; ++d)
+                    grid[i][d] = static_cast<std::uint64_t>((centre[i][d] - low[d]) / extent * ((1u << bits) - 1));
+                const auto curve = Utilities::inverse_Hilbert_space_filling_curve<3>(grid, bits);
+                std::copy(curve.begin(), curve.end(), key.begin() + first_cell);
+                first_cell = end;
               }
-            SparsityTools::reorder_hierarchical(graph, order);
+            std::vector<std::uint64_t> sorted(n_cells);
+            std::iota(sorted.begin(), sorted.end(), 0);
+            std::sort(sorted.begin(), sorted.end(), [&](const std::uint64_t a, const std::uint64_t b) {
+              const auto ba = cells[a].material_id, bb = cells[b].material_id;
+              return ba < bb || (ba == bb && (key[a] < key[b] || (key[a] == key[b] && a < b)));
+            });
+            for (std::uint64_t k = 0; k < n_cells; ++k)
+              order[sorted[k]] = k;
           }
         else
           std::iota(order.begin(), order.end(), 0);

@@ -116,7 +116,11 @@ namespace shard::contact
     reach_depth(unsigned int i, double depth) const;
     /// Keeps hit @p h on segment @p g for slave @p i if it is less deep than the one kept.
     void
-    keep(unsigned int i, const SegmentHit &h, unsigned int g);
+    keep(const ContactNodes &nodes, unsigned int i, const SegmentHit &h, unsigned int g);
+    /// Whether face @p a comes before face @p b by their sorted reference positions (the
+    /// tie-break of keep(), the same on every partition).
+    static bool
+    reference_before(const ContactNodes &nodes, unsigned int a, unsigned int b);
     /// Whether kept slave @p i turned to a face of another direction.
     bool
     turned(unsigned int i) const;
@@ -128,6 +132,8 @@ namespace shard::contact
     /// test applies: a face of another direction (a corner of the target; the sides of a
     /// 16-sided cylinder differ by 22.5 degrees, cosine 0.92), not the same face turning.
     static constexpr double corner_cosine = 0.99;
+    /// Relative difference of two depths below which keep() treats them as a tie.
+    static constexpr double tie_tolerance = 1e-10;
 
     /// Candidates (node, segment).
     std::vector<std::array<unsigned int, 2>> candidates_;

@@ -120,8 +120,8 @@ namespace shard::mesh
    * @brief Owns the bodies, the distributed triangulation, the Q1 vector element and the DoFs.
    *
    * All bodies are meshed in serial on rank 0 and merged into one mesh (the model's cells in
-   * input order; vertices are not merged across bodies). Rank 0 orders the cells hierarchically
-   * (as p4est ordered its coarse cells), cuts that order into contiguous ranges (by count, or by
+   * input order; vertices are not merged across bodies). Rank 0 orders the cells along a Hilbert
+   * curve through their centres, cuts that order into contiguous ranges (by count, or by
    * work with particles at set-up) and sends each rank its own cells and the layer of cells that
    * share a vertex with them; every rank then holds only that part, as a
    * `parallel::fullydistributed::Triangulation` (doc/manual/cluster.md, "The distributed
