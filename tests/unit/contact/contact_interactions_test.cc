@@ -12,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <vector>
 
@@ -445,4 +446,101 @@ TEST(ParticlePairs, APairIsEvaluatedByTheOwnerOfItsSmallerDof)
       build_all(pairs, nodes, bonds, spacing);
       EXPECT_EQ(pairs.candidates().size(), first_owned ? 1u : 0u);
     }
+}
+
+// Ties (doc/manual/contact.md, "Ties"): a slave under the apex of a pyramid of four faces
+// z = -s (|x| + |y|) (the nose point of the showcase projectile) is equally deep under all
+// four. The face it keeps, and with it the direction of its force, must not depend on the
+// order of the faces and nodes, which depends on the partition. Before the tie-break the first
+// face found won: the three orders below pushed the slave along the normals of the faces of
+// quadrants ++, +- and -- (checked: this test failed with that rule).
+TEST(NodeToSurface, ATieBetweenFacesDoesNotDependOnTheirOrder)
+{
+  const double L = 1e-2, s = 0.3;
+  // The apex, then the four edge midpoints and four corners of the base square (side 2L).
+  const auto height = [&](const double x, const double y) { return -s * (std::abs(x) + std::abs(y)); };
+  std::vector<Vec3> points = {{{0, 0, 0}}};
+  for (const auto &xy : std::vector<std::array<double, 2>>{{{L, 0}}, {{0, L}}, {{-L, 0}}, {{0, -L}}, {{L, L}}, {{-L, L}}, {{-L, -L}}, {{L, -L}}})
+    points.push_back(Vec3{{xy[0], xy[1], height(xy[0], xy[1])}});
+  // The four faces, counter-clockwise seen from above (outside): quadrants ++, -+, --, +-.
+  const std::vector<std::array<unsigned int, 4>> quadrants = {{{0, 1, 5, 2}}, {{0, 2, 6, 3}}, {{0, 3, 7, 4}}, {{0, 4, 8, 1}}};
+
+  // The force on the slave with the target's nodes listed in @p node_order and its faces in
+  // @p face_order.
+  const auto slave_force = [&](const std::vector<unsigned int> &node_order, const std::vector<unsigned int> &face_order) {
+    ContactNodes nodes;
+    std::vector<unsigned int> index(points.size());
+    for (unsigned int k = 0; k < node_order.size(); ++k)
+      {
+        index[node_order[k]] = k;
+        ContactNode n;
+        n.dof     = 3 * k;
+        n.X       = points[node_order[k]];
+        n.mass    = 1;
+        n.bulk    = bulk;
+        n.spacing = L;
+        n.body    = 1;
+        nodes.nodes.push_back(n);
+      }
+    ContactNode slave;
+    slave.dof     = 3 * points.size();
+    slave.mass    = 1;
+    slave.bulk    = bulk;
+    slave.spacing = L;
+    slave.body    = 0;
+    nodes.nodes.push_back(slave);
+    const unsigned int i = static_cast<unsigned int>(points.size());
+    for (const unsigned int f : face_order)
+      {
+        ContactSegment face;
+        for (unsigned int v = 0; v < 4; ++v)
+          face.node[v] = index[quadrants[f][v]];
+        face.stiffness = bulk * L;
+        face.body      = 1;
+        nodes.segments.push_back(face);
+      }
+    const auto place = [&](const double z) {
+      nodes.state.assign(ContactNodes::state_record * nodes.size(), 0.);
+      for (unsigned int k = 0; k < i; ++k)
+        for (unsigned int c = 0; c < 3; ++c)
+          nodes.state[ContactNodes::state_record * k + c] = nodes.nodes[k].X[c];
+      nodes.state[ContactNodes::state_record * i + 2] = z;
+    };
+    InteractionSettings settings;
+    settings.type_text   = "node to surface";
+    settings.bodies      = {0};
+    settings.target_body = 1;
+    settings.penalty     = penalty;
+    NodeToSurface contact(settings);
+    contact.set_print_notices(false);
+    contact.reset(nodes);
+    BondFilter bonds;
+    bonds.reset(nodes);
+    place(1e-4);
+    build_all(contact, nodes, bonds, 0.1 * L);
+    Vec3 f{};
+    for (const double z : {-1e-8, -1e-5})
+      {
+        place(z);
+        std::vector<double> force(3 * nodes.size(), 0.);
+        ForceSink           sink(force, 1e-3);
+        contact.add_forces(nodes, z == -1e-8 ? 1 : 2, 1e-9, sink);
+        f = Vec3{{force[3 * i], force[3 * i + 1], force[3 * i + 2]}};
+      }
+    return f;
+  };
+
+  const Vec3 a = slave_force({0, 1, 2, 3, 4, 5, 6, 7, 8}, {0, 1, 2, 3});
+  const Vec3 b = slave_force({8, 7, 6, 5, 4, 3, 2, 1, 0}, {3, 2, 1, 0});
+  const Vec3 c = slave_force({4, 0, 7, 1, 6, 2, 5, 3, 8}, {2, 0, 3, 1});
+  ASSERT_GT(a[2], 0.) << "the slave is pushed out";
+  for (unsigned int d = 0; d < 3; ++d)
+    {
+      EXPECT_NEAR(b[d], a[d], 1e-12 * a[2]) << "component " << d;
+      EXPECT_NEAR(c[d], a[d], 1e-12 * a[2]) << "component " << d;
+    }
+  // The tie goes to the face whose sorted reference positions come first: quadrant --, whose
+  // outward normal is (-s, -s, 1) / sqrt(2 s^2 + 1).
+  EXPECT_NEAR(a[0] / a[2], -s, 1e-9);
+  EXPECT_NEAR(a[1] / a[2], -s, 1e-9);
 }
