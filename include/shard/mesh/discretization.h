@@ -120,10 +120,10 @@ namespace shard::mesh
    * @brief Owns the bodies, the distributed triangulation, the Q1 vector element and the DoFs.
    *
    * All bodies are meshed in serial on rank 0 and merged into one mesh (the model's cells in
-   * input order; vertices are not merged across bodies). Rank 0 orders the cells along a Hilbert
-   * curve through their centres, cuts that order into contiguous ranges (by count, or by
-   * work with particles at set-up) and sends each rank its own cells and the layer of cells that
-   * share a vertex with them; every rank then holds only that part, as a
+   * input order; vertices are not merged across bodies). Rank 0 orders the cells body by body,
+   * each body along a Hilbert curve through its cell centres, cuts that order into contiguous
+   * ranges (by count, or by work with particles at set-up) and sends each rank its own cells and
+   * the layer of cells that share a vertex with them; every rank then holds only that part, as a
    * `parallel::fullydistributed::Triangulation` (doc/manual/cluster.md, "The distributed
    * mesh"). Every cell is a coarse cell; its coarse cell id is its index in the merged mesh, and
    * vertex_key() gives a vertex's index there: both are the same at any rank count. Cell
