@@ -154,6 +154,36 @@ namespace shard::mesh
       dealii::Point<3>   centre;
     };
 
+    /// Judges cell number @p index with corners @p x (deal.II's order) and keeps it if it is the
+    /// worst so far.
+    void
+    judge_cell(WorstCell &worst, const std::array<Point<3>, 8> &x, const unsigned int index)
+    {
+      double longest = 0, smallest = 1e300, volume = 0;
+      for (unsigned int v = 0; v < 8; ++v)
+        {
+          // Edges from corner v along the three reference directions, oriented +x, +y, +z.
+          Tensor<1, 3> e[3];
+          for (unsigned int d = 0; d < 3; ++d)
+            {
+              const unsigned int w = v ^ (1u << d);
+              e[d]                 = (v & (1u << d)) ? x[v] - x[w] : x[w] - x[v];
+              longest              = std::max(longest, e[d].norm());
+            }
+          const double det = e[0] * cross_product_3d(e[1], e[2]);
+          smallest         = std::min(smallest, std::isfinite(det) ? det : -1e300);
+          volume += det / 8;
+        }
+      const double quality = longest > 0 && std::isfinite(longest) ? smallest / (longest * longest * longest) : -1;
+      if (!(quality >= worst.quality))
+        {
+          worst.quality = quality;
+          worst.volume  = volume;
+          worst.index   = index;
+          worst.centre  = (x[0] + x[7]) / 2;
+        }
+    }
+
     WorstCell
     worst_cell(const Triangulation<3> &tria, const std::function<Point<3>(const Point<3> &)> &transform)
     {
@@ -164,35 +194,101 @@ namespace shard::mesh
           std::array<Point<3>, 8> x;
           for (unsigned int v = 0; v < 8; ++v)
             x[v] = transform(cell->vertex(v));
-          double longest = 0, smallest = 1e300, volume = 0;
-          for (unsigned int v = 0; v < 8; ++v)
-            {
-              // Edges from corner v along the three reference directions, oriented +x, +y, +z.
-              Tensor<1, 3> e[3];
-              for (unsigned int d = 0; d < 3; ++d)
-                {
-                  const unsigned int w = v ^ (1u << d);
-                  e[d]                 = (v & (1u << d)) ? x[v] - x[w] : x[w] - x[v];
-                  longest              = std::max(longest, e[d].norm());
-                }
-              const double det = e[0] * cross_product_3d(e[1], e[2]);
-              smallest         = std::min(smallest, std::isfinite(det) ? det : -1e300);
-              volume += det / 8;
-            }
-          const double quality = longest > 0 && std::isfinite(longest) ? smallest / (longest * longest * longest) : -1;
-          if (!(quality >= worst.quality))
-            {
-              worst.quality = quality;
-              worst.volume  = volume;
-              worst.index   = index;
-              worst.centre  = (x[0] + x[7]) / 2;
-            }
-          ++index;
+          judge_cell(worst, x, index++);
         }
       return worst;
     }
 
-    /// Meshes one body in serial; returns the vertex transform to apply afterwards.
+    /// A box or a rod as GridGenerator::subdivided_hyper_rectangle (colorized) meshes it, without
+    /// a Triangulation (rank 0 meshes the whole model; a Triangulation of the Hanchak slab was
+    /// most of its set-up peak): the vertex coordinates per direction, computed with the same
+    /// floating-point operations, so the vertices are bit-identical. The cells run x fastest,
+    /// then y, then z; face ids 0..5 are x-, x+, y-, y+, z-, z+ in the body's own frame.
+    struct BoxGrid
+    {
+      std::array<std::vector<double>, 3>         coordinate;
+      std::function<Point<3>(const Point<3> &)> transform;
+
+      unsigned int
+      n(const unsigned int d) const
+      {
+        return static_cast<unsigned int>(coordinate[d].size()) - 1;
+      }
+    };
+
+    BoxGrid
+    box_grid(const BodyParameters &b)
+    {
+      BoxGrid    grid;
+      const auto origin = base::parse_point(b.origin);
+      const Point<3> o(origin[0], origin[1], origin[2]);
+      const int      axis = axis_index(b.axis);
+      Point<3>       p1, p2;
+      if (b.shape == "box")
+        {
+          const auto l = base::parse_point(b.lower_corner), u = base::parse_point(b.upper_corner);
+          p1 = Point<3>(l[0], l[1], l[2]);
+          p2 = Point<3>(u[0], u[1], u[2]);
+        }
+      else
+        {
+          p1 = Point<3>(0, -b.width / 2, -b.width / 2);
+          p2 = Point<3>(b.length, b.width / 2, b.width / 2);
+        }
+      if (b.shape == "box" && b.grading > 1 && b.element_size > 0)
+        {
+          // Graded box: uniform cells in the fine core, growing outside it. As deal.II: the
+          // corners in increasing order (steps reversed with them), x = p1 + the sum of the steps.
+          const auto fl = b.fine_lower_corner.empty() ? std::array<double, 3>{{p1[0], p1[1], p1[2]}} :
+                                                        base::parse_point(b.fine_lower_corner);
+          const auto fu = b.fine_upper_corner.empty() ? std::array<double, 3>{{p2[0], p2[1], p2[2]}} :
+                                                        base::parse_point(b.fine_upper_corner);
+          for (unsigned int d = 0; d < 3; ++d)
+            {
+              std::vector<double> steps = graded_cell_sizes(p1[d], p2[d], fl[d], fu[d], b.element_size, b.grading);
+              double              low   = p1[d];
+              if (p1[d] > p2[d])
+                {
+                  low = p2[d];
+                  std::reverse(steps.begin(), steps.end());
+                }
+              double x = 0;
+              grid.coordinate[d].push_back(low + x);
+              for (const double h : steps)
+                {
+                  x += h;
+                  grid.coordinate[d].push_back(low + x);
+                }
+            }
+        }
+      else
+        for (unsigned int d = 0; d < 3; ++d)
+          {
+            // As deal.II: p1 + i (p2 - p1) / n, corners in increasing order.
+            const unsigned int n = b.element_size > 0 ?
+                                     std::max(1u, static_cast<unsigned int>(
+                                                    std::ceil((p2[d] - p1[d]) / b.element_size - 1e-6))) :
+                                     (1u << b.refinement);
+            const double low = std::min(p1[d], p2[d]), high = std::max(p1[d], p2[d]);
+            const double delta = (high - low) / n;
+            for (unsigned int i = 0; i <= n; ++i)
+              grid.coordinate[d].push_back(low + i * delta);
+          }
+      if (b.shape == "box")
+        grid.transform = [](const Point<3> &p) { return p; };
+      else
+        grid.transform = [=](const Point<3> &p) {
+          // Cyclic permutation x -> axis: a rotation, so cell orientation is kept.
+          Point<3> q;
+          for (unsigned int d = 0; d < 3; ++d)
+            q[(d + axis) % 3] = p[d];
+          return Point<3>(q + o);
+        };
+      return grid;
+    }
+
+    /// Meshes a cylinder, an ogive or a Gmsh body in serial; returns the vertex transform to apply
+    /// afterwards (boxes and rods: box_grid()).
     std::function<Point<3>(const Point<3> &)>
     build_body(Triangulation<3> &tria, const BodyParameters &b, const base::PrmSource &source)
     {
@@ -207,46 +303,6 @@ namespace shard::mesh
           q[(d + axis) % 3] = p[d];
         return q;
       };
-      if (b.shape == "box" || b.shape == "rod")
-        {
-          Point<3> p1, p2;
-          if (b.shape == "box")
-            {
-              const auto l = base::parse_point(b.lower_corner), u = base::parse_point(b.upper_corner);
-              p1 = Point<3>(l[0], l[1], l[2]);
-              p2 = Point<3>(u[0], u[1], u[2]);
-            }
-          else
-            {
-              p1 = Point<3>(0, -b.width / 2, -b.width / 2);
-              p2 = Point<3>(b.length, b.width / 2, b.width / 2);
-            }
-          if (b.shape == "box" && b.grading > 1 && b.element_size > 0)
-            {
-              // Graded box: uniform cells in the fine core, growing outside it.
-              const auto fl = b.fine_lower_corner.empty() ? std::array<double, 3>{{p1[0], p1[1], p1[2]}} :
-                                                            base::parse_point(b.fine_lower_corner);
-              const auto fu = b.fine_upper_corner.empty() ? std::array<double, 3>{{p2[0], p2[1], p2[2]}} :
-                                                            base::parse_point(b.fine_upper_corner);
-              std::vector<std::vector<double>> steps(3);
-              for (unsigned int d = 0; d < 3; ++d)
-                steps[d] = graded_cell_sizes(p1[d], p2[d], fl[d], fu[d], b.element_size, b.grading);
-              GridGenerator::subdivided_hyper_rectangle(tria, steps, p1, p2, true);
-            }
-          else
-            {
-              std::vector<unsigned int> reps(3);
-              for (unsigned int d = 0; d < 3; ++d)
-                reps[d] = b.element_size > 0 ?
-                            std::max(1u, static_cast<unsigned int>(
-                                           std::ceil((p2[d] - p1[d]) / b.element_size - 1e-6))) :
-                            (1u << b.refinement);
-              GridGenerator::subdivided_hyper_rectangle(tria, reps, p1, p2, true);
-            }
-          if (b.shape == "box")
-            return [](const Point<3> &p) { return p; };
-          return [=](const Point<3> &p) { return Point<3>(to_axis(p) + o); };
-        }
       if (b.shape == "cylinder" || b.shape == "ogive")
         {
           // The coarse cylinder has 5 cells per cross-section; after n refinements the mean
@@ -683,35 +739,89 @@ namespace shard::mesh
             }
         }
       body_boundary_ids_.assign(bodies_.size(), {});
+      // Degenerate elements are refused here, naming the body's key, not found as an inverted
+      // element at step 1.
+      const auto refuse_degenerate = [&](const BodyParameters &b, const WorstCell &worst) {
+        if (!(worst.quality > 1e-9))
+          {
+            const std::string key = b.shape == "gmsh" ? (b.mesh_scale < 1e-100 ? "mesh scale" : "mesh file") :
+                                    b.shape == "box"  ? "upper corner" :
+                                    b.shape == "rod"  ? (b.width < b.length ? "width" : "length") :
+                                                        "radius";
+            std::ostringstream value, why;
+            if (key == "mesh file" || key == "upper corner")
+              value << (key == "mesh file" ? b.mesh_file : b.upper_corner);
+            else
+              value << (key == "mesh scale" ? b.mesh_scale : key == "width" ? b.width : key == "length" ? b.length : b.radius);
+            why << std::setprecision(4) << "element " << worst.index + 1 << " of body '" << b.name << "' (centre "
+                << worst.centre[0] << ", " << worst.centre[1] << ", " << worst.centre[2] << " m) is "
+                << (!(worst.quality > -1e299) ? "not finite" : worst.quality > 0 ? "degenerate" : worst.volume > 0 ? "inverted at a corner" : "of zero or negative volume")
+                << " (smallest corner Jacobian / longest edge^3 = " << worst.quality
+                << "; a cube has 1, shard needs > 1e-9): the body's dimensions, element size"
+                << (b.shape == "gmsh" ? ", the file's vertices and mesh scale" : "")
+                << " must give elements of finite, positive volume.";
+            source.fail(sections::mesh + "/" + b.name + "/" + key, value.str(), why.str());
+          }
+      };
       for (unsigned int k = 0; k < bodies_.size(); ++k)
         {
+          if (bodies_[k].shape == "box" || bodies_[k].shape == "rod")
+            {
+              // Straight into the cell list, vertices numbered in order of first use as below
+              // (the same list as through a Triangulation).
+              const BoxGrid      grid = box_grid(bodies_[k]);
+              const unsigned int nx = grid.n(0), ny = grid.n(1), nz = grid.n(2);
+              const auto grid_point = [&](const unsigned int i, const unsigned int j, const unsigned int l) {
+                return grid.transform(Point<3>(grid.coordinate[0][i], grid.coordinate[1][j], grid.coordinate[2][l]));
+              };
+              std::vector<std::uint64_t> number(std::uint64_t(nx + 1) * (ny + 1) * (nz + 1), ~std::uint64_t(0));
+              WorstCell                  worst;
+              unsigned int               index = 0;
+              for (unsigned int l = 0; l < nz; ++l)
+                for (unsigned int j = 0; j < ny; ++j)
+                  for (unsigned int i = 0; i < nx; ++i, ++index)
+                    {
+                      CellData<3>             c;
+                      std::array<Point<3>, 8> x;
+                      for (unsigned int v = 0; v < 8; ++v)
+                        {
+                          const unsigned int vi = i + (v & 1), vj = j + ((v >> 1) & 1), vl = l + (v >> 2);
+                          x[v]                  = grid_point(vi, vj, vl);
+                          auto &n = number[(std::uint64_t(vl) * (ny + 1) + vj) * (nx + 1) + vi];
+                          if (n == ~std::uint64_t(0))
+                            {
+                              n = vertices.size();
+                              vertices.push_back(x[v]);
+                            }
+                          c.vertices[v] = static_cast<unsigned int>(n);
+                        }
+                      judge_cell(worst, x, index);
+                      c.material_id = k;
+                      cells.push_back(c);
+                      boundary.emplace_back();
+                      auto &ids = boundary.back();
+                      ids.fill(numbers::internal_face_boundary_id);
+                      if (i == 0)
+                        ids[0] = 0;
+                      if (i == nx - 1)
+                        ids[1] = 1;
+                      if (j == 0)
+                        ids[2] = 2;
+                      if (j == ny - 1)
+                        ids[3] = 3;
+                      if (l == 0)
+                        ids[4] = 4;
+                      if (l == nz - 1)
+                        ids[5] = 5;
+                    }
+              refuse_degenerate(bodies_[k], worst);
+              body_boundary_ids_[k] = {0, 1, 2, 3, 4, 5};
+              continue;
+            }
           dealii::Triangulation<3> tria;
           const auto       transform = build_body(tria, bodies_[k], source);
           {
-            // Degenerate elements are refused here, naming the body's key, not found as an
-            // inverted element at step 1.
-            const auto       &b     = bodies_[k];
-            const WorstCell   worst = worst_cell(tria, transform);
-            if (!(worst.quality > 1e-9))
-              {
-                const std::string key = b.shape == "gmsh" ? (b.mesh_scale < 1e-100 ? "mesh scale" : "mesh file") :
-                                        b.shape == "box"  ? "upper corner" :
-                                        b.shape == "rod"  ? (b.width < b.length ? "width" : "length") :
-                                                            "radius";
-                std::ostringstream value, why;
-                if (key == "mesh file" || key == "upper corner")
-                  value << (key == "mesh file" ? b.mesh_file : b.upper_corner);
-                else
-                  value << (key == "mesh scale" ? b.mesh_scale : key == "width" ? b.width : key == "length" ? b.length : b.radius);
-                why << std::setprecision(4) << "element " << worst.index + 1 << " of body '" << b.name << "' (centre "
-                    << worst.centre[0] << ", " << worst.centre[1] << ", " << worst.centre[2] << " m) is "
-                    << (!(worst.quality > -1e299) ? "not finite" : worst.quality > 0 ? "degenerate" : worst.volume > 0 ? "inverted at a corner" : "of zero or negative volume")
-                    << " (smallest corner Jacobian / longest edge^3 = " << worst.quality
-                    << "; a cube has 1, shard needs > 1e-9): the body's dimensions, element size"
-                    << (b.shape == "gmsh" ? ", the file's vertices and mesh scale" : "")
-                    << " must give elements of finite, positive volume.";
-                source.fail(sections::mesh + "/" + b.name + "/" + key, value.str(), why.str());
-              }
+            refuse_degenerate(bodies_[k], worst_cell(tria, transform));
             for (const auto &cell : tria.active_cell_iterators())
               for (const unsigned int f : cell->face_indices())
                 if (cell->face(f)->at_boundary())
