@@ -1,11 +1,23 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 // Cell sizes of the graded box (mesh::graded_cell_sizes): they fill the edge exactly, the fine
 // core has uniform cells no larger than h, the cells outside grow by at most the ratio per cell
-// and never exceed the unscaled geometric size h r^k.
+// and never exceed the unscaled geometric size h r^k. Boxes and rods in the merged mesh are
+// deal.II's subdivided_hyper_rectangle bit for bit.
+#include <shard/base/parameters.h>
+#include <shard/materials/material_library.h>
 #include <shard/mesh/discretization.h>
+
+#include <deal.II/base/parameter_handler.h>
+#include <deal.II/grid/grid_generator.h>
+#include <deal.II/grid/tria.h>
 
 #include <gtest/gtest.h>
 
+#include <array>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
 #include <numeric>
 
 namespace
@@ -63,4 +75,91 @@ TEST(GradedBox, CoreCoveringTheBoxIsUniform)
   ASSERT_EQ(sizes.size(), 30u);
   for (const double s : sizes)
     EXPECT_NEAR(s, 0.178 / 30, 1e-12);
+}
+
+// Boxes and rods go straight into rank 0's cell list, without a Triangulation (2026-12-07,
+// doc/manual/cluster.md "The distributed mesh"). Their vertices (positions and numbering), cells
+// and face ids must be those deal.II's GridGenerator::subdivided_hyper_rectangle (colorized)
+// makes, bit for bit, so that results did not change: a graded box and a rod along y, off the
+// origin, in one model.
+TEST(BoxMesh, IsDealIIsSubdividedHyperRectangleBitForBit)
+{
+  using namespace dealii;
+  const auto path = std::filesystem::temp_directory_path() / "shard_box_mesh_test.prm";
+  std::ofstream(path) << "subsection B - Mesh\n set body names = slab, bar\n"
+                         " subsection slab\n  set shape = box\n  set lower corner = -0.05, -0.04, -0.03\n"
+                         "  set upper corner = 0.05, 0.04, 0.0\n  set element size = 0.01\n  set grading = 1.3\n"
+                         "  set fine lower corner = -0.02, -0.01, -0.03\n  set fine upper corner = 0.01, 0.01, -0.01\n"
+                         "  set material = steel\n end\n"
+                         " subsection bar\n  set shape = rod\n  set axis = y\n  set origin = 0.1, 0.2, 0.3\n"
+                         "  set length = 0.05\n  set width = 0.01\n  set element size = 0.004\n  set material = steel\n end\n"
+                         "end\n"
+                         "subsection C - Materials\n set material names = steel\n subsection steel\n"
+                         "  set model = elastic\n  set density = 7850\n  set young's modulus = 200e9\n"
+                         "  set poisson's ratio = 0.3\n end\nend\n";
+  shard::base::PrmSource            source(path.string());
+  shard::mesh::Discretization       discretization{MPI_COMM_SELF};
+  shard::materials::MaterialLibrary library;
+  ParameterHandler                  prm;
+  shard::base::read_parameters(prm, {&discretization, &library}, source);
+  discretization.prepare(source);
+
+  // The reference: deal.II's meshes of the two bodies, merged as shard merged them before (the
+  // vertices of each body numbered in order of first use over its cells).
+  std::vector<Point<3>>                                   position;
+  std::vector<std::array<std::uint64_t, 8>>               cell_vertices;
+  std::vector<std::array<types::boundary_id, 6>>          face_ids;
+  const auto merge = [&](const Triangulation<3> &tria, const std::function<Point<3>(const Point<3> &)> &map) {
+    std::map<unsigned int, std::uint64_t> number;
+    for (const auto &cell : tria.active_cell_iterators())
+      {
+        std::array<std::uint64_t, 8> keys;
+        for (unsigned int v = 0; v < 8; ++v)
+          {
+            const auto [it, inserted] = number.emplace(cell->vertex_index(v), position.size());
+            if (inserted)
+              position.push_back(map(cell->vertex(v)));
+            keys[v] = it->second;
+          }
+        cell_vertices.push_back(keys);
+        std::array<types::boundary_id, 6> ids;
+        for (unsigned int f = 0; f < 6; ++f)
+          ids[f] = cell->face(f)->at_boundary() ? cell->face(f)->boundary_id() : numbers::internal_face_boundary_id;
+        face_ids.push_back(ids);
+      }
+  };
+  {
+    Triangulation<3>                 slab;
+    std::vector<std::vector<double>> steps(3);
+    const double low[3] = {-0.05, -0.04, -0.03}, high[3] = {0.05, 0.04, 0.0}, fl[3] = {-0.02, -0.01, -0.03},
+                 fu[3] = {0.01, 0.01, -0.01};
+    for (unsigned int d = 0; d < 3; ++d)
+      steps[d] = shard::mesh::graded_cell_sizes(low[d], high[d], fl[d], fu[d], 0.01, 1.3);
+    GridGenerator::subdivided_hyper_rectangle(slab, steps, Point<3>(low[0], low[1], low[2]),
+                                              Point<3>(high[0], high[1], high[2]), true);
+    merge(slab, [](const Point<3> &p) { return p; });
+    Triangulation<3> bar;
+    GridGenerator::subdivided_hyper_rectangle(bar, {13, 3, 3}, Point<3>(0, -0.005, -0.005), Point<3>(0.05, 0.005, 0.005),
+                                              true);
+    merge(bar, [](const Point<3> &p) { return Point<3>(p[2] + 0.1, p[0] + 0.2, p[1] + 0.3); });
+  }
+
+  ASSERT_EQ(discretization.triangulation().n_global_active_cells(), cell_vertices.size());
+  ASSERT_EQ(discretization.n_global_vertices(), position.size());
+  for (const auto &cell : discretization.triangulation().active_cell_iterators())
+    {
+      const auto c = cell->id().get_coarse_cell_id();
+      ASSERT_LT(c, cell_vertices.size());
+      for (unsigned int v = 0; v < 8; ++v)
+        {
+          const auto key = discretization.vertex_key(cell->vertex_index(v));
+          ASSERT_EQ(key, cell_vertices[c][v]) << "cell " << c << " vertex " << v;
+          for (unsigned int d = 0; d < 3; ++d)
+            ASSERT_EQ(cell->vertex(v)[d], position[key][d]) << "cell " << c << " vertex " << v;
+        }
+      for (unsigned int f = 0; f < 6; ++f)
+        ASSERT_EQ(cell->face(f)->at_boundary() ? cell->face(f)->boundary_id() : numbers::internal_face_boundary_id,
+                  face_ids[c][f])
+          << "cell " << c << " face " << f;
+    }
 }
