@@ -89,6 +89,17 @@ namespace shard::mesh
       return axis == "x" ? 0 : axis == "y" ? 1 : axis == "z" ? 2 : -1;
     }
 
+    /// The cyclic permutation that takes x to direction @p axis: a rotation, so cell orientation
+    /// is kept (rods, cylinders and ogives are meshed along x).
+    Point<3>
+    to_axis(const Point<3> &p, const int axis)
+    {
+      Point<3> q;
+      for (unsigned int d = 0; d < 3; ++d)
+        q[(d + axis) % 3] = p[d];
+      return q;
+    }
+
     /// The number of cells build_body() makes for a generated shape (box, rod, cylinder, ogive),
     /// computed in floating point without meshing (so that an absurd size is refused before any
     /// allocation), and the key that sets it. For gmsh the count comes from the file's scan.
@@ -277,13 +288,7 @@ namespace shard::mesh
       if (b.shape == "box")
         grid.transform = [](const Point<3> &p) { return p; };
       else
-        grid.transform = [=](const Point<3> &p) {
-          // Cyclic permutation x -> axis: a rotation, so cell orientation is kept.
-          Point<3> q;
-          for (unsigned int d = 0; d < 3; ++d)
-            q[(d + axis) % 3] = p[d];
-          return Point<3>(q + o);
-        };
+        grid.transform = [=](const Point<3> &p) { return Point<3>(to_axis(p, axis) + o); };
       return grid;
     }
 
@@ -296,13 +301,6 @@ namespace shard::mesh
       const auto origin = base::parse_point(b.origin);
       const Point<3> o(origin[0], origin[1], origin[2]);
       const int      axis = axis_index(b.axis);
-      // Cyclic permutation x -> axis: a rotation, so cell orientation is kept.
-      const auto to_axis = [axis](const Point<3> &p) {
-        Point<3> q;
-        for (unsigned int d = 0; d < 3; ++d)
-          q[(d + axis) % 3] = p[d];
-        return q;
-      };
       if (b.shape == "cylinder" || b.shape == "ogive")
         {
           // The coarse cylinder has 5 cells per cross-section; after n refinements the mean
@@ -319,7 +317,7 @@ namespace shard::mesh
           tria.refine_global(n_ref);
           const double h = b.length / 2;
           if (b.shape == "cylinder")
-            return [=](const Point<3> &p) { return Point<3>(to_axis(p + Point<3>(h, 0, 0)) + o); };
+            return [=](const Point<3> &p) { return Point<3>(to_axis(p + Point<3>(h, 0, 0), axis) + o); };
           // Tangent ogive nose at the start face: arc radius rho = 2 R CRH, centred at distance
           // rho - R from the axis on the shoulder plane; r(s) = sqrt(rho^2 - s^2) - (rho - R) at
           // distance s from the shoulder, cut at the meplat radius r_m: nose length s_m. The
@@ -334,7 +332,7 @@ namespace shard::mesh
                 q[1] *= f;
                 q[2] *= f;
               }
-            return Point<3>(to_axis(q) + o);
+            return Point<3>(to_axis(q, axis) + o);
           };
         }
       // gmsh

@@ -163,6 +163,30 @@ namespace
     nodes.segments = {face};
     return nodes;
   }
+
+  /// Node to surface: the nodes of body 0 (slaves) against the faces of body 1.
+  InteractionSettings
+  surface_settings()
+  {
+    InteractionSettings settings;
+    settings.name        = "impact";
+    settings.type_text   = "node to surface";
+    settings.bodies      = {0};
+    settings.target_body = 1;
+    settings.penalty     = penalty;
+    return settings;
+  }
+
+  /// Every node at its reference position, except node @p slave, whose z is @p z.
+  void
+  place(ContactNodes &nodes, const unsigned int slave, const double z)
+  {
+    nodes.state.assign(ContactNodes::state_record * nodes.size(), 0.);
+    for (unsigned int i = 0; i < nodes.size(); ++i)
+      for (unsigned int c = 0; c < 3; ++c)
+        nodes.state[ContactNodes::state_record * i + c] = nodes.nodes[i].X[c];
+    nodes.state[ContactNodes::state_record * slave + 2] = z;
+  }
 } // namespace
 
 // Elastic collision (no dashpot): a linear spring k = s K h between two masses m, reduced mass
@@ -323,25 +347,12 @@ TEST(NodeToSurface, SlaveOnAFaceGetsTheSpringAndTheCornersTheReaction)
   const double L     = 1e-2;
   ContactNodes nodes = face_and_slave(L);
   const auto  &face  = nodes.segments[0];
-  const auto place = [&](const double z) {
-    nodes.state.assign(ContactNodes::state_record * nodes.size(), 0.);
-    for (unsigned int i = 0; i < nodes.size(); ++i)
-      for (unsigned int c = 0; c < 3; ++c)
-        nodes.state[ContactNodes::state_record * i + c] = nodes.nodes[i].X[c];
-    nodes.state[ContactNodes::state_record * 4 + 2] = z;
-  };
-  InteractionSettings settings;
-  settings.name        = "impact";
-  settings.type_text   = "node to surface";
-  settings.bodies      = {0};
-  settings.target_body = 1;
-  settings.penalty     = penalty;
-  NodeToSurface contact(settings);
+  NodeToSurface contact(surface_settings());
   contact.set_print_notices(false);
   contact.reset(nodes);
   BondFilter bonds;
   bonds.reset(nodes);
-  place(1e-4); // above the face: no force
+  place(nodes, 4, 1e-4); // above the face: no force
   build_all(contact, nodes, bonds, 0.1 * L);
   std::vector<double> force(3 * nodes.size(), 0.);
   {
@@ -354,7 +365,7 @@ TEST(NodeToSurface, SlaveOnAFaceGetsTheSpringAndTheCornersTheReaction)
   const double g0 = 1e-8, g = 1e-5;
   for (const double z : {-g0, -g})
     {
-      place(z);
+      place(nodes, 4, z);
       std::fill(force.begin(), force.end(), 0.);
       ForceSink sink(force, 1e-3);
       contact.add_forces(nodes, z == -g0 ? 1 : 2, 1e-9, sink);
@@ -389,21 +400,12 @@ TEST(NodeToSurface, APairIsEvaluatedByTheOwnerOfItsSlave)
         nodes.nodes[a].owned = false; // the face belongs to another rank
       nodes.nodes[4].owned = slave_owned;
       const auto &face     = nodes.segments[0];
-      InteractionSettings settings;
-      settings.type_text   = "node to surface";
-      settings.bodies      = {0};
-      settings.target_body = 1;
-      settings.penalty     = penalty;
-      NodeToSurface contact(settings);
+      NodeToSurface contact(surface_settings());
       contact.set_print_notices(false);
       contact.reset(nodes);
       BondFilter bonds;
       bonds.reset(nodes);
-      nodes.state.assign(ContactNodes::state_record * nodes.size(), 0.);
-      for (unsigned int i = 0; i < nodes.size(); ++i)
-        for (unsigned int c = 0; c < 3; ++c)
-          nodes.state[ContactNodes::state_record * i + c] = nodes.nodes[i].X[c];
-      nodes.state[ContactNodes::state_record * 4 + 2] = 1e-4; // above the face at the build
+      place(nodes, 4, 1e-4); // above the face at the build
       build_all(contact, nodes, bonds, 0.1 * L);
       double pressed = 0;
       // Enters 1e-8 deep (the entry offset), then pressed 1e-5 deep.
@@ -499,29 +501,17 @@ TEST(NodeToSurface, ATieBetweenFacesDoesNotDependOnTheirOrder)
         face.body      = 1;
         nodes.segments.push_back(face);
       }
-    const auto place = [&](const double z) {
-      nodes.state.assign(ContactNodes::state_record * nodes.size(), 0.);
-      for (unsigned int k = 0; k < i; ++k)
-        for (unsigned int c = 0; c < 3; ++c)
-          nodes.state[ContactNodes::state_record * k + c] = nodes.nodes[k].X[c];
-      nodes.state[ContactNodes::state_record * i + 2] = z;
-    };
-    InteractionSettings settings;
-    settings.type_text   = "node to surface";
-    settings.bodies      = {0};
-    settings.target_body = 1;
-    settings.penalty     = penalty;
-    NodeToSurface contact(settings);
+    NodeToSurface contact(surface_settings());
     contact.set_print_notices(false);
     contact.reset(nodes);
     BondFilter bonds;
     bonds.reset(nodes);
-    place(1e-4);
+    place(nodes, i, 1e-4);
     build_all(contact, nodes, bonds, 0.1 * L);
     Vec3 f{};
     for (const double z : {-1e-8, -1e-5})
       {
-        place(z);
+        place(nodes, i, z);
         std::vector<double> force(3 * nodes.size(), 0.);
         ForceSink           sink(force, 1e-3);
         contact.add_forces(nodes, z == -1e-8 ? 1 : 2, 1e-9, sink);
