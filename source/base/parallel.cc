@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/base/parallel.h>
+#include <shard/base/quiet_wait.h>
 
 #include <deal.II/base/multithread_info.h>
 
@@ -7,9 +8,11 @@
 #include <tbb/parallel_for.h>
 #include <tbb/partitioner.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
 namespace shard::base
 {
@@ -46,4 +49,17 @@ namespace shard::base
         tbb::simple_partitioner());
     }
   } // namespace internal
+
+  void
+  wait_quietly(MPI_Request &request)
+  {
+    for (int done = 0;;)
+      {
+        if (MPI_Test(&request, &done, MPI_STATUS_IGNORE) != MPI_SUCCESS)
+          throw std::runtime_error("MPI_Test failed while waiting for the other ranks");
+        if (done)
+          return;
+        std::this_thread::sleep_for(std::chrono::microseconds(50));
+      }
+  }
 } // namespace shard::base

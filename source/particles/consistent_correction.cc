@@ -272,9 +272,10 @@ namespace shard::particles
   namespace
   {
     /**
-     * The additive coarse correction of the correction solve: aggregates of owned particles
-     * (cubes of edge H per component), their constant and linear functions, E = Z^T S Z assembled
-     * over all ranks and factorized (CHOLMOD, supernodal Cholesky) on every rank.
+     * The additive coarse correction of the correction solve: aggregates of particles (cubes of
+     * edge H per component, over all ranks), their constant and linear functions, E = Z^T S Z assembled
+     * on rank 0 and factorized (CHOLMOD, supernodal Cholesky) there; each preconditioner
+     * application sends Z^T r to rank 0 and returns E^-1 Z^T r to the owners.
      */
     class CoarseCorrection
     {
@@ -293,7 +294,10 @@ namespace shard::particles
         const double h = totals[1] > 0 ? std::cbrt(totals[0] / totals[1]) : 1.;
         const double H = size * h;
 
-        // Aggregates of the owned particles, numbered in the order of their cube (deterministic).
+        // Aggregates: the particles of one component in one cube, over all ranks. This rank's part
+        // of each (its "local aggregates", in cube order) sends its sums to rank 0, which merges
+        // them in rank order, numbers the aggregates in cube order and returns what each part needs:
+        // the coarse space is the same at any rank count (decision 0009).
         std::vector<std::array<long long, 4>>             key(n_owned_);
         std::map<std::array<long long, 4>, unsigned int> index;
         for (unsigned int i = 0; i < n_owned_; ++i)
@@ -303,72 +307,174 @@ namespace shard::particles
               key[i][c + 1] = static_cast<long long>(std::floor(position_j[i][c] / H));
             index.emplace(key[i], 0u);
           }
+        const unsigned int n_parts = index.size();
         {
           unsigned int n = 0;
           for (auto &entry : index)
             entry.second = n++;
-          n_aggregates_ = n;
         }
-        std::vector<unsigned int> aggregate(n_owned_);
+        aggregate_.resize(n_owned_);
         for (unsigned int i = 0; i < n_owned_; ++i)
-          aggregate[i] = index.at(key[i]);
-        // Per aggregate: centroid and principal directions; a direction is kept when its
-        // variance is at least 1 % of the largest one and the aggregate has 4 particles or more.
-        std::vector<Eigen::Vector3d> centroid(n_aggregates_, Eigen::Vector3d::Zero());
-        std::vector<Eigen::Matrix3d> moment(n_aggregates_, Eigen::Matrix3d::Zero());
-        std::vector<unsigned int>    members(n_aggregates_, 0);
+          aggregate_[i] = index.at(key[i]);
+        // The number of local aggregates of every rank: the lengths of the parts below.
+        std::vector<int> parts(1, static_cast<int>(n_parts));
+        if (exchange.gather)
+          {
+            const auto all = exchange.gather(std::vector<double>{double(n_parts)});
+            parts.assign(all.begin(), all.end());
+          }
+        const auto lengths = [&](const int per_part) {
+          std::vector<int> out(parts);
+          for (auto &n : out)
+            n *= per_part;
+          return out;
+        };
+        const auto up = [&](std::vector<double> v) { return exchange.to_root ? exchange.to_root(v) : v; };
+        const auto down = [&](const std::vector<double> &all, const int per_part) {
+          return exchange.from_root ? exchange.from_root(all, lengths(per_part), per_part * n_parts) : all;
+        };
+        const bool root = exchange.rank == 0;
+
+        // 1. Members and the sum of positions -> the aggregate's number and centroid.
+        std::vector<double> send(8 * n_parts, 0.);
+        for (const auto &[k, a] : index)
+          for (unsigned int c = 0; c < 4; ++c)
+            send[8 * a + c] = static_cast<double>(k[c]);
         for (unsigned int i = 0; i < n_owned_; ++i)
           {
-            centroid[aggregate[i]] += Eigen::Vector3d(position_j[i][0], position_j[i][1], position_j[i][2]);
-            ++members[aggregate[i]];
+            send[8 * aggregate_[i] + 4] += 1.;
+            for (unsigned int c = 0; c < 3; ++c)
+              send[8 * aggregate_[i] + 5 + c] += position_j[i][c];
           }
-        for (unsigned int a = 0; a < n_aggregates_; ++a)
-          centroid[a] /= members[a];
+        std::vector<double> received = up(send);
+        // On rank 0: the aggregate of every part (in rank order), and per aggregate the sums.
+        std::vector<unsigned int>    aggregate_of_part;
+        std::vector<Eigen::Vector3d> centroid;
+        std::vector<double>          members;
+        if (root)
+          {
+            std::map<std::array<long long, 4>, unsigned int> global;
+            for (std::size_t p = 0; p < received.size() / 8; ++p)
+              global.emplace(std::array<long long, 4>{{static_cast<long long>(received[8 * p]),
+                                                       static_cast<long long>(received[8 * p + 1]),
+                                                       static_cast<long long>(received[8 * p + 2]),
+                                                       static_cast<long long>(received[8 * p + 3])}},
+                             0u);
+            n_aggregates_ = 0;
+            for (auto &entry : global)
+              entry.second = n_aggregates_++;
+            centroid.assign(n_aggregates_, Eigen::Vector3d::Zero());
+            members.assign(n_aggregates_, 0.);
+            aggregate_of_part.resize(received.size() / 8);
+            for (std::size_t p = 0; p < aggregate_of_part.size(); ++p)
+              {
+                const unsigned int a = global.at({{static_cast<long long>(received[8 * p]),
+                                                   static_cast<long long>(received[8 * p + 1]),
+                                                   static_cast<long long>(received[8 * p + 2]),
+                                                   static_cast<long long>(received[8 * p + 3])}});
+                aggregate_of_part[p] = a;
+                members[a] += received[8 * p + 4];
+                centroid[a] += Eigen::Vector3d(received[8 * p + 5], received[8 * p + 6], received[8 * p + 7]);
+              }
+            for (unsigned int a = 0; a < n_aggregates_; ++a)
+              centroid[a] /= members[a];
+            send.assign(3 * aggregate_of_part.size(), 0.);
+            for (std::size_t p = 0; p < aggregate_of_part.size(); ++p)
+              for (unsigned int c = 0; c < 3; ++c)
+                send[3 * p + c] = centroid[aggregate_of_part[p]](c);
+          }
+        received = down(send, 3);
+        std::vector<Eigen::Vector3d> part_centroid(n_parts);
+        for (unsigned int a = 0; a < n_parts; ++a)
+          part_centroid[a] = Eigen::Vector3d(received[3 * a], received[3 * a + 1], received[3 * a + 2]);
+
+        // 2. Second moments about the centroid -> the principal directions; a direction is kept
+        //    when its variance is at least 1 % of the largest one and the aggregate has 4 particles
+        //    or more. Rank 0 numbers the functions in aggregate order.
+        send.assign(9 * n_parts, 0.);
         for (unsigned int i = 0; i < n_owned_; ++i)
           {
             const Eigen::Vector3d x =
-              Eigen::Vector3d(position_j[i][0], position_j[i][1], position_j[i][2]) - centroid[aggregate[i]];
-            moment[aggregate[i]] += x * x.transpose();
+              Eigen::Vector3d(position_j[i][0], position_j[i][1], position_j[i][2]) - part_centroid[aggregate_[i]];
+            for (unsigned int r = 0; r < 3; ++r)
+              for (unsigned int c = 0; c < 3; ++c)
+                send[9 * aggregate_[i] + 3 * r + c] += x(r) * x(c);
           }
-        std::vector<Eigen::Matrix3d> scaled(n_aggregates_, Eigen::Matrix3d::Zero()); // rows: v_k / sigma_k
-        std::vector<unsigned int>    count(n_aggregates_, 1), local_first(n_aggregates_, 0);
-        unsigned int                 n_local = 0;
-        for (unsigned int a = 0; a < n_aggregates_; ++a)
+        received = up(send);
+        if (root)
           {
-            local_first[a] = n_local;
-            if (members[a] >= 4)
+            std::vector<Eigen::Matrix3d> moment(n_aggregates_, Eigen::Matrix3d::Zero());
+            for (std::size_t p = 0; p < aggregate_of_part.size(); ++p)
+              for (unsigned int r = 0; r < 3; ++r)
+                for (unsigned int c = 0; c < 3; ++c)
+                  moment[aggregate_of_part[p]](r, c) += received[9 * p + 3 * r + c];
+            std::vector<Eigen::Matrix3d> scaled(n_aggregates_, Eigen::Matrix3d::Zero()); // rows: v_k / sigma_k
+            std::vector<unsigned int>    count(n_aggregates_, 1), first(n_aggregates_, 0);
+            n_functions_ = 0;
+            for (unsigned int a = 0; a < n_aggregates_; ++a)
               {
-                const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(moment[a] / members[a]);
-                const double largest = eig.eigenvalues()(2);
-                for (int k = 2; k >= 0; --k)
-                  if (largest > 0 && eig.eigenvalues()(k) >= 1e-2 * largest)
-                    scaled[a].row(count[a]++ - 1) = eig.eigenvectors().col(k).transpose() / std::sqrt(eig.eigenvalues()(k));
+                first[a] = n_functions_;
+                if (members[a] >= 4)
+                  {
+                    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(moment[a] / members[a]);
+                    const double largest = eig.eigenvalues()(2);
+                    for (int k = 2; k >= 0; --k)
+                      if (largest > 0 && eig.eigenvalues()(k) >= 1e-2 * largest)
+                        scaled[a].row(count[a]++ - 1) =
+                          eig.eigenvectors().col(k).transpose() / std::sqrt(eig.eigenvalues()(k));
+                  }
+                n_functions_ += count[a];
               }
-            n_local += count[a];
+            send.assign(11 * aggregate_of_part.size(), 0.);
+            function_of_slot_.clear();
+            for (std::size_t p = 0; p < aggregate_of_part.size(); ++p)
+              {
+                const unsigned int a = aggregate_of_part[p];
+                send[11 * p]         = first[a];
+                send[11 * p + 1]     = count[a];
+                for (unsigned int r = 0; r < 3; ++r)
+                  for (unsigned int c = 0; c < 3; ++c)
+                    send[11 * p + 2 + 3 * r + c] = scaled[a](r, c);
+                for (unsigned int k = 0; k < count[a]; ++k)
+                  function_of_slot_.push_back(first[a] + k);
+              }
+            // The lengths of every rank's part of Z^T r: 3 per function of its local aggregates.
+            slot_lengths_.assign(parts.size(), 0);
+            for (std::size_t r = 0, p = 0; r < parts.size(); ++r)
+              for (int q = 0; q < parts[r]; ++q, ++p)
+                slot_lengths_[r] += 3 * static_cast<int>(count[aggregate_of_part[p]]);
           }
-        // Global numbering: the functions of the ranks before this one come first.
-        unsigned int offset = 0;
-        n_functions_        = n_local;
-        if (exchange.gather)
+        received = down(send, 11);
+        std::vector<Eigen::Matrix3d> scaled(n_parts);
+        std::vector<unsigned int>    first(n_parts), count(n_parts);
+        slot_first_.resize(n_parts);
+        n_slots_ = 0;
+        for (unsigned int a = 0; a < n_parts; ++a)
           {
-            const auto counts = exchange.gather(std::vector<double>{double(n_local)});
-            n_functions_      = 0;
-            for (unsigned int r = 0; r < counts.size(); ++r)
-              {
-                if (r < exchange.rank)
-                  offset += static_cast<unsigned int>(counts[r]);
-                n_functions_ += static_cast<unsigned int>(counts[r]);
-              }
+            first[a] = static_cast<unsigned int>(received[11 * a]);
+            count[a] = static_cast<unsigned int>(received[11 * a + 1]);
+            for (unsigned int r = 0; r < 3; ++r)
+              for (unsigned int c = 0; c < 3; ++c)
+                scaled[a](r, c) = received[11 * a + 2 + 3 * r + c];
+            slot_first_[a] = n_slots_;
+            n_slots_ += count[a];
           }
+        // Every rank knows the sizes of the coarse space.
+        std::vector<double> sizes{double(n_functions_), double(n_aggregates_)};
+        if (!root)
+          sizes.assign(2, 0.);
+        exchange.sum(sizes);
+        n_functions_  = static_cast<unsigned int>(sizes[0]);
+        n_aggregates_ = static_cast<unsigned int>(sizes[1]);
         // The functions at every J: owned computed here, the others from their owners.
         std::vector<double> head(3 * n_j, 0.), tail(3 * n_j, 0.);
         for (unsigned int i = 0; i < n_owned_; ++i)
           {
-            const unsigned int    a = aggregate[i];
+            const unsigned int    a = aggregate_[i];
             const Eigen::Vector3d x =
-              Eigen::Vector3d(position_j[i][0], position_j[i][1], position_j[i][2]) - centroid[a];
+              Eigen::Vector3d(position_j[i][0], position_j[i][1], position_j[i][2]) - part_centroid[a];
             const Eigen::Vector3d phi = scaled[a] * x;
-            head[3 * i]               = offset + local_first[a];
+            head[3 * i]               = first[a];
             head[3 * i + 1]           = count[a];
             head[3 * i + 2]           = count[a] > 1 ? phi(0) : 0.;
             tail[3 * i]               = count[a] > 2 ? phi(1) : 0.;
@@ -388,7 +494,8 @@ namespace shard::particles
             functions_.phi[3 * j + 2] = tail[3 * j + 1];
           }
 
-        // E over all ranks, factorized on every rank.
+        // E = Z^T S Z, assembled and factorized on rank 0 only: the other ranks send their entries
+        // and wait for the outcome.
         const auto          local = correction.coarse_operator(functions_);
         std::vector<double> flat(3 * local.size());
         for (std::size_t k = 0; k < local.size(); ++k)
@@ -397,8 +504,89 @@ namespace shard::particles
             flat[3 * k + 1] = local[k].column;
             flat[3 * k + 2] = local[k].value;
           }
-        if (exchange.gather)
-          flat = exchange.gather(flat);
+        if (exchange.to_root)
+          flat = exchange.to_root(flat);
+        double factorized = 1.;
+        if (exchange.rank == 0)
+          factorized = factorize(flat) ? 1. : 0.;
+        if (exchange.from_root)
+          factorized =
+            exchange.from_root(std::vector<double>(parts.size(), factorized), std::vector<int>(parts.size(), 1), 1)[0];
+        if (factorized != 1.)
+          throw std::runtime_error("consistent correction: the coarse matrix could not be factorized");
+      }
+
+      /// z += Z E^-1 Z^T r on the owned J (3 per J). Each rank sends its part of Z^T r (per function
+      /// of its local aggregates) to rank 0, which adds the parts in rank order, solves with E and
+      /// returns to every rank the values of the functions of its local aggregates.
+      void
+      add(const std::vector<double> &r, std::vector<double> &z) const
+      {
+        std::vector<double> b(3 * std::size_t(n_slots_), 0.);
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          for (unsigned int k = 0; k < functions_.count[i]; ++k)
+            {
+              const double phi = k == 0 ? 1. : functions_.phi[3 * i + k - 1];
+              for (unsigned int c = 0; c < 3; ++c)
+                b[3 * (slot_first_[aggregate_[i]] + k) + c] += phi * r[3 * i + c];
+            }
+        if (exchange_.to_root)
+          b = exchange_.to_root(b);
+        if (exchange_.rank == 0)
+          {
+            Eigen::Matrix<double, Eigen::Dynamic, 3> rhs = Eigen::Matrix<double, Eigen::Dynamic, 3>::Zero(n_functions_, 3);
+            for (std::size_t s = 0; s < function_of_slot_.size(); ++s)
+              for (unsigned int c = 0; c < 3; ++c)
+                rhs(function_of_slot_[s], c) += b[3 * s + c];
+            const Eigen::Matrix<double, Eigen::Dynamic, 3> y = factor_.solve(rhs);
+            for (std::size_t s = 0; s < function_of_slot_.size(); ++s)
+              for (unsigned int c = 0; c < 3; ++c)
+                b[3 * s + c] = y(function_of_slot_[s], c);
+          }
+        if (exchange_.from_root)
+          b = exchange_.from_root(b, slot_lengths_, 3 * n_slots_);
+        for (unsigned int i = 0; i < n_owned_; ++i)
+          for (unsigned int k = 0; k < functions_.count[i]; ++k)
+            {
+              const double phi = k == 0 ? 1. : functions_.phi[3 * i + k - 1];
+              for (unsigned int c = 0; c < 3; ++c)
+                z[3 * i + c] += phi * b[3 * (slot_first_[aggregate_[i]] + k) + c];
+            }
+      }
+
+      unsigned int
+      n_functions() const
+      {
+        return n_functions_;
+      }
+
+      unsigned int
+      n_aggregates() const
+      {
+        return n_aggregates_;
+      }
+
+    private:
+      const CorrectionExchange &exchange_;
+      unsigned int              n_owned_, n_functions_ = 0, n_aggregates_ = 0;
+      /// Per owned particle: its local aggregate (this rank's part of an aggregate, in cube order).
+      std::vector<unsigned int> aggregate_;
+      /// Per local aggregate: its first slot; a slot is one function of a local aggregate.
+      std::vector<unsigned int> slot_first_;
+      unsigned int              n_slots_ = 0;
+      /// On rank 0: the global function of every slot of every rank (in rank order), and the
+      /// length of every rank's part of Z^T r (3 per slot).
+      std::vector<unsigned int> function_of_slot_;
+      std::vector<int>          slot_lengths_;
+      CoarseFunctions           functions_;
+      /// E, on rank 0 only.
+      Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> factor_;
+
+      /// Assembles E from the entries of all ranks (row, column, value) and factorizes it.
+      /// @return false when no shift makes it factorizable
+      bool
+      factorize(const std::vector<double> &flat)
+      {
         std::vector<Eigen::Triplet<double>> triplets;
         triplets.reserve(flat.size() / 3 + n_functions_);
         std::vector<double> diagonal(n_functions_, 0.);
@@ -426,51 +614,8 @@ namespace shard::particles
               shifted.coeffRef(k, k) += extra;
             factor_.compute(shifted);
           }
-        if (factor_.info() != Eigen::Success)
-          throw std::runtime_error("consistent correction: the coarse matrix could not be factorized");
+        return factor_.info() == Eigen::Success;
       }
-
-      /// z += Z E^-1 Z^T r on the owned J (3 per J).
-      void
-      add(const std::vector<double> &r, std::vector<double> &z) const
-      {
-        std::vector<double> b(3 * std::size_t(n_functions_), 0.);
-        for (unsigned int i = 0; i < n_owned_; ++i)
-          for (unsigned int k = 0; k < functions_.count[i]; ++k)
-            {
-              const double phi = k == 0 ? 1. : functions_.phi[3 * i + k - 1];
-              for (unsigned int c = 0; c < 3; ++c)
-                b[3 * (functions_.first[i] + k) + c] += phi * r[3 * i + c];
-            }
-        exchange_.sum(b);
-        Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> rhs(b.data(), n_functions_, 3);
-        const Eigen::Matrix<double, Eigen::Dynamic, 3> y = factor_.solve(Eigen::Matrix<double, Eigen::Dynamic, 3>(rhs));
-        for (unsigned int i = 0; i < n_owned_; ++i)
-          for (unsigned int k = 0; k < functions_.count[i]; ++k)
-            {
-              const double phi = k == 0 ? 1. : functions_.phi[3 * i + k - 1];
-              for (unsigned int c = 0; c < 3; ++c)
-                z[3 * i + c] += phi * y(functions_.first[i] + k, c);
-            }
-      }
-
-      unsigned int
-      n_functions() const
-      {
-        return n_functions_;
-      }
-
-      unsigned int
-      n_aggregates() const
-      {
-        return n_aggregates_;
-      }
-
-    private:
-      const CorrectionExchange                          &exchange_;
-      unsigned int                                       n_owned_, n_functions_ = 0, n_aggregates_ = 0;
-      CoarseFunctions                                    functions_;
-      Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> factor_;
     };
 
     /// Dot product over the owned entries (3 per owned J), summed over ranks. @note Collective.
@@ -625,9 +770,7 @@ namespace shard::particles
       {
         coarse                = std::make_unique<CoarseCorrection>(correction, position_j, component, coarse_size, exchange);
         out.coarse_functions = coarse->n_functions();
-        std::vector<double> n(1, coarse->n_aggregates());
-        exchange.sum(n);
-        out.aggregates = static_cast<unsigned int>(n[0]);
+        out.aggregates       = coarse->n_aggregates();
       }
     const auto precondition = [&]() {
       for (unsigned int k = 0; k < 3 * n_owned; ++k)

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/base/parallel.h>
+#include <shard/base/quiet_wait.h>
 #include <shard/base/sections.h>
 #include <shard/base/tensor.h>
 #include <shard/particles/spg_force.h>
@@ -284,6 +285,40 @@ namespace shard::particles
       std::vector<double> all(offsets[n_ranks]);
       MPI_Allgatherv(a.data(), n, MPI_DOUBLE, all.data(), counts.data(), offsets.data(), MPI_DOUBLE, comm);
       return all;
+    };
+    exchange.to_root = [comm](const std::vector<double> &a) {
+      const int        n_ranks = Utilities::MPI::n_mpi_processes(comm);
+      const bool       root    = Utilities::MPI::this_mpi_process(comm) == 0;
+      int              n       = static_cast<int>(a.size());
+      std::vector<int> counts(root ? n_ranks : 0), offsets(root ? n_ranks + 1 : 1, 0);
+      int              ierr = MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, comm);
+      AssertThrowMPI(ierr);
+      for (int r = 0; r < static_cast<int>(counts.size()); ++r)
+        offsets[r + 1] = offsets[r] + counts[r];
+      std::vector<double> all(offsets.back());
+      ierr = MPI_Gatherv(a.data(), n, MPI_DOUBLE, all.data(), counts.data(), offsets.data(), MPI_DOUBLE, 0, comm);
+      AssertThrowMPI(ierr);
+      return all;
+    };
+    exchange.from_root = [comm](const std::vector<double> &all, const std::vector<int> &lengths,
+                                const unsigned int n_mine) {
+      const bool       root = Utilities::MPI::this_mpi_process(comm) == 0;
+      std::vector<int> offsets(root ? lengths.size() + 1 : 1, 0);
+      if (root)
+        for (std::size_t r = 0; r < lengths.size(); ++r)
+          offsets[r + 1] = offsets[r] + lengths[r];
+      std::vector<double> mine(n_mine);
+      MPI_Request         request;
+      int ierr = MPI_Iscatterv(all.data(), lengths.data(), offsets.data(), MPI_DOUBLE, mine.data(),
+                               static_cast<int>(n_mine), MPI_DOUBLE, 0, comm, &request);
+      AssertThrowMPI(ierr);
+      // The other ranks wait while rank 0 solves the coarse problem, without spinning.
+      if (root)
+        ierr = MPI_Wait(&request, MPI_STATUS_IGNORE);
+      else
+        base::wait_quietly(request);
+      AssertThrowMPI(ierr);
+      return mine;
     };
     std::vector<double> lambda;
     const auto          solve =

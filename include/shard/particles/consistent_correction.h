@@ -154,8 +154,18 @@ namespace shard::particles
     std::function<void(std::vector<double> &)> distribute;
     /// Element-wise sum over ranks.
     std::function<void(std::vector<double> &)> sum;
-    /// The vectors of all ranks, concatenated in rank order (unset: one rank, identity).
+    /// The vectors of all ranks, concatenated in rank order (unset: one rank, identity). For
+    /// vectors of a few entries per rank only: the result is on every rank.
     std::function<std::vector<double>(const std::vector<double> &)> gather;
+    /// The vectors of all ranks, concatenated in rank order on rank 0; empty on the others (unset:
+    /// one rank, identity). The coarse problem of the solve lives on rank 0 only.
+    std::function<std::vector<double>(const std::vector<double> &)> to_root;
+    /// The inverse of to_root: rank 0 passes the concatenation and the length of every rank's
+    /// part; every rank gets its own part (length @p n_mine). The other ranks wait without spinning
+    /// while rank 0 works (unset: one rank, identity).
+    std::function<std::vector<double>(const std::vector<double> &all, const std::vector<int> &lengths,
+                                      unsigned int n_mine)>
+      from_root;
     /// This rank's index (0 on one rank).
     unsigned int rank = 0;
   };
@@ -180,7 +190,8 @@ namespace shard::particles
    *
    * The preconditioner is Jacobi, plus, for @p coarse_size > 0, an additive coarse correction
    * Z E^-1 Z^T with E = Z^T S Z: the owned particles are grouped into aggregates (cubes of edge
-   * coarse_size times the mean particle spacing, per component and rank) and Z holds a constant
+   * coarse_size times the mean particle spacing, per component, over all ranks: the same coarse
+   * space at any rank count) and Z holds a constant
    * and up to three linear functions per aggregate. S is a fourth-order operator, so Jacobi
    * alone needs iterations growing as (L/h)^2 with the size L of the particle set; the coarse
    * space bounds them by the aggregate size (decision 0009, doc/theory/spg_stabilization.md).
