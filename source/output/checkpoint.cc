@@ -222,34 +222,25 @@ namespace shard::output
     }
 
     // Keys: the merged-mesh vertex index of each owned node (Discretization::vertex_key(), the
-    // same at any rank count), and the global tables of all nodes.
+    // same at any rank count). The global tables wait for share_node_keys().
     const auto &pt = *discretization.partitioner();
     key_of_owned_.assign(pt.locally_owned_size() / 3, ~0ull);
-    std::vector<unsigned long long> pairs;
     for (const auto &cell : discretization.dof_handler().active_cell_iterators())
       if (cell->is_locally_owned() || cell->is_ghost())
         for (const unsigned int v : cell->vertex_indices())
           {
             const auto g = cell->vertex_dof_index(v, 0);
             if (pt.in_local_range(g) && key_of_owned_[pt.global_to_local(g) / 3] == ~0ull)
-              {
-                const auto key = discretization.vertex_key(cell->vertex_index(v));
-                key_of_owned_[pt.global_to_local(g) / 3] = key;
-                pairs.push_back(g / 3);
-                pairs.push_back(key);
-              }
+              key_of_owned_[pt.global_to_local(g) / 3] = discretization.vertex_key(cell->vertex_index(v));
           }
     if (std::find(key_of_owned_.begin(), key_of_owned_.end(), ~0ull) != key_of_owned_.end())
       throw std::logic_error("Checkpoint: an owned node without a vertex");
-    const auto n_nodes = discretization.dof_handler().n_dofs() / 3;
-    key_of_node_.assign(n_nodes, ~0ull);
-    node_of_key_.assign(discretization.n_global_vertices(), ~0ull);
-    for (const auto &list : Utilities::MPI::all_gather(comm_, pairs))
-      for (std::size_t k = 0; k + 1 < list.size(); k += 2)
-        {
-          key_of_node_[list[k]]         = list[k + 1];
-          node_of_key_[list[k + 1]] = list[k];
-        }
+    first_owned_node_ = pt.local_range().first / 3;
+    n_nodes_          = discretization.dof_handler().n_dofs() / 3;
+    n_keys_           = discretization.n_global_vertices();
+    shared_           = false;
+    key_of_node_.clear();
+    node_of_key_.clear();
 
     if (Utilities::MPI::this_mpi_process(comm_) == 0 && interval_ > 0)
       {
@@ -290,6 +281,29 @@ namespace shard::output
                         ": remove it to restart from the one before, or name that one's manifest.");
       }
     read(manifest, source);
+  }
+
+  void
+  Checkpoint::share_node_keys()
+  {
+    if (shared_)
+      return;
+    std::vector<unsigned long long> pairs;
+    pairs.reserve(2 * key_of_owned_.size());
+    for (std::size_t k = 0; k < key_of_owned_.size(); ++k)
+      {
+        pairs.push_back(first_owned_node_ + k);
+        pairs.push_back(key_of_owned_[k]);
+      }
+    key_of_node_.assign(n_nodes_, ~0ull);
+    node_of_key_.assign(n_keys_, ~0ull);
+    for (const auto &list : Utilities::MPI::all_gather(comm_, pairs))
+      for (std::size_t k = 0; k + 1 < list.size(); k += 2)
+        {
+          key_of_node_[list[k]]     = list[k + 1];
+          node_of_key_[list[k + 1]] = list[k];
+        }
+    shared_ = true;
   }
 
   void

@@ -200,6 +200,7 @@ namespace shard
   void
   Simulation::write_checkpoint()
   {
+    checkpoint_.share_node_keys();
     const unsigned int rank = Utilities::MPI::this_mpi_process(comm_);
     const auto        &pt   = *discretization_.partitioner();
     const auto key_bonds = [&](const std::vector<Bond> &bonds) {
@@ -286,6 +287,7 @@ namespace shard
   void
   Simulation::restore_topology()
   {
+    checkpoint_.share_node_keys();
     const std::string         key = sections::checkpoint + "/restart from";
     SavedGlobal               g;
     SavedRank                 r;
@@ -344,6 +346,7 @@ namespace shard
   void
   Simulation::restore_state()
   {
+    checkpoint_.share_node_keys();
     const std::string  key  = sections::checkpoint + "/restart from";
     const unsigned int rank = Utilities::MPI::this_mpi_process(comm_);
     const bool         same = checkpoint_.same_rank_count();

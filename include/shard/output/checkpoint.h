@@ -11,6 +11,7 @@
 #include <shard/base/parameters.h>
 #include <shard/mesh/discretization.h>
 
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -116,17 +117,31 @@ namespace shard::output
       return key_of_owned_[local_dof / 3];
     }
 
-    /// Key of the node with global DOF index 3 @p node (any rank's node).
+    /**
+     * @brief Fills the tables of key_of_node() and node_of_key() with every rank's nodes, on the
+     * first call (later calls return at once). The tables hold two entries per node of the model
+     * on every rank, so only a run that writes or reads a checkpoint builds them, when it first
+     * does (the node numbering does not change during a run). @note Collective.
+     */
+    void
+    share_node_keys();
+
+    /// Key of the node with global DOF index 3 @p node (any rank's node). Needs share_node_keys().
     unsigned long long
     key_of_node(unsigned long long node) const
     {
+      if (!shared_)
+        throw std::logic_error("Checkpoint::key_of_node before share_node_keys()");
       return key_of_node_.at(node);
     }
 
-    /// Global node (global DOF / 3) of key @p key, or ~0ull when no node has it.
+    /// Global node (global DOF / 3) of key @p key, or ~0ull when no node has it. Needs
+    /// share_node_keys().
     unsigned long long
     node_of_key(unsigned long long key) const
     {
+      if (!shared_)
+        throw std::logic_error("Checkpoint::node_of_key before share_node_keys()");
       return key < node_of_key_.size() ? node_of_key_[key] : ~0ull;
     }
 
@@ -140,6 +155,9 @@ namespace shard::output
     std::string                     directory_, fingerprint_, manifest_;
     std::vector<std::string>        payloads_;
     std::vector<unsigned long long> key_of_owned_, key_of_node_, node_of_key_;
+    /// For share_node_keys(): the first owned node, the node and key counts of the model.
+    unsigned long long first_owned_node_ = 0, n_nodes_ = 0, n_keys_ = 0;
+    bool               shared_ = false;
 
     /// Path of file @p suffix of the checkpoint of @p step in the directory.
     std::string
