@@ -292,7 +292,11 @@ namespace shard::particles
           totals[0] += correction.volume(i);
         exchange.sum(totals);
         const double h = totals[1] > 0 ? std::cbrt(totals[0] / totals[1]) : 1.;
-        const double H = size * h;
+        // The sum over ranks carries round-off that depends on the rank count, and a particle on a
+        // cube face would change cube with it: H rounded to 20 bits is the same at any rank count.
+        int          exponent = 0;
+        const double mantissa = std::frexp(size * h, &exponent);
+        const double H        = std::ldexp(std::round(std::ldexp(mantissa, 20)), exponent - 20);
 
         // Aggregates: the particles of one component in one cube, over all ranks. This rank's part
         // of each (its "local aggregates", in cube order) sends its sums to rank 0, which merges

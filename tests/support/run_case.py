@@ -39,7 +39,8 @@ is the key that sets the output directory (default `K - Output/directory`; for m
 --np N runs with mpiexec; --compare-ranks A B runs at both counts and requires the
 histories (and fragments.csv, when written) to agree to --rel (default 1e-8) relative to max(|a|, |b|, scale), where the scale of
 an energy column is the largest energy term of the run, of a momentum component the largest
-component, of the energy error 1, and of any other column its largest magnitude.
+component, of the energy error 1, and of any other column its largest magnitude; the coarse space
+of every consistent-correction solve (functions, aggregates) must be the same at both counts.
 --compare-threads A B ... runs at --np ranks with `--threads A`, `--threads B`, ... and requires
 history.csv (and fragments.csv, when written) byte for byte equal to those of the first count, and
 summary.json to report the thread count.
@@ -483,7 +484,7 @@ def main():
         if args.compare_threads:
             compare_threads(args, tmp, failures, case)
         elif args.compare_ranks:
-            dirs = []
+            dirs, logs = [], []
             for n in args.compare_ranks:
                 out = os.path.join(tmp, f"np{n}")
                 p, cmd = run_shard(args, n, out)
@@ -491,8 +492,17 @@ def main():
                     print(p.stdout, p.stderr)
                     raise SystemExit(f"{case}: run at {n} ranks failed ({p.returncode}): {' '.join(cmd)}")
                 dirs.append(out)
+                logs.append(p.stderr)
             compare_histories(dirs[0], dirs[1], args.rel, failures, case)
             compare_fragments(dirs[0], dirs[1], args.rel, failures, case)
+            # The coarse space of every consistent-correction solve (rank 0 reports it on stderr) is
+            # the same at any rank count (decision 0009, amended 2026-12-07).
+            spaces = [re.findall(r"coarse space (\d+) functions on (\d+) aggregates", text) for text in logs]
+            print(("ok    " if spaces[0] == spaces[1] else "FAIL  ") +
+                  f"{case}: coarse spaces of {len(spaces[0])} correction solves equal at both rank counts")
+            if spaces[0] != spaces[1]:
+                failures.append(f"{case}: coarse spaces of the correction solves differ: "
+                                f"{args.compare_ranks[0]} ranks {spaces[0][:4]}..., {args.compare_ranks[1]} ranks {spaces[1][:4]}...")
         else:
             out = os.path.join(tmp, "out")
             p, cmd = run_shard(args, args.np, out)
