@@ -8,13 +8,13 @@
 #include <shard/materials/material_library.h>
 #include <shard/mesh/discretization.h>
 
+#include <support/scene_text.h>
+
 #include <deal.II/base/parameter_handler.h>
 
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <filesystem>
-#include <fstream>
 #include <string>
 
 namespace
@@ -33,16 +33,9 @@ namespace
 
     explicit OneElement(const std::string &viscosity = "set bulk viscosity linear = 0\nset bulk viscosity quadratic = 0\n")
     {
-      const auto path = std::filesystem::temp_directory_path() / "shard_hex_force_test.prm";
-      std::ofstream(path) << "subsection B - Mesh\n set body names = cube\n subsection cube\n  set shape = box\n"
-                             "  set lower corner = 0, 0, 0\n  set upper corner = 1, 1, 1\n  set refinement = 0\n"
-                             "  set material = steel\n end\nend\n"
-                             "subsection C - Materials\n set material names = steel\n subsection steel\n"
-                             "  set model = elastic\n  set density = 7850\n  set young's modulus = 200e9\n"
-                             "  set poisson's ratio = 0.3\n end\nend\n"
-                             "subsection D - Finite elements\n"
-                          << viscosity << "end\n";
-      source = base::PrmSource(path.string());
+      source = test_support::scene_source("shard_hex_force_test.prm",
+                                          test_support::unit_cube(0) + test_support::elastic_steel() +
+                                            "subsection D - Finite elements\n" + viscosity + "end\n");
       base::read_parameters(prm, {&discretization, &library, &hex}, source);
       discretization.prepare(source);
       library.prepare();

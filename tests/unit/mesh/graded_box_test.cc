@@ -7,6 +7,8 @@
 #include <shard/materials/material_library.h>
 #include <shard/mesh/discretization.h>
 
+#include <support/scene_text.h>
+
 #include <deal.II/base/parameter_handler.h>
 #include <deal.II/grid/grid_generator.h>
 #include <deal.II/grid/tria.h>
@@ -14,8 +16,6 @@
 #include <gtest/gtest.h>
 
 #include <array>
-#include <filesystem>
-#include <fstream>
 #include <functional>
 #include <map>
 #include <numeric>
@@ -85,19 +85,17 @@ TEST(GradedBox, CoreCoveringTheBoxIsUniform)
 TEST(BoxMesh, IsDealIIsSubdividedHyperRectangleBitForBit)
 {
   using namespace dealii;
-  const auto path = std::filesystem::temp_directory_path() / "shard_box_mesh_test.prm";
-  std::ofstream(path) << "subsection B - Mesh\n set body names = slab, bar\n"
-                         " subsection slab\n  set shape = box\n  set lower corner = -0.05, -0.04, -0.03\n"
-                         "  set upper corner = 0.05, 0.04, 0.0\n  set element size = 0.01\n  set grading = 1.3\n"
-                         "  set fine lower corner = -0.02, -0.01, -0.03\n  set fine upper corner = 0.01, 0.01, -0.01\n"
-                         "  set material = steel\n end\n"
-                         " subsection bar\n  set shape = rod\n  set axis = y\n  set origin = 0.1, 0.2, 0.3\n"
-                         "  set length = 0.05\n  set width = 0.01\n  set element size = 0.004\n  set material = steel\n end\n"
-                         "end\n"
-                         "subsection C - Materials\n set material names = steel\n subsection steel\n"
-                         "  set model = elastic\n  set density = 7850\n  set young's modulus = 200e9\n"
-                         "  set poisson's ratio = 0.3\n end\nend\n";
-  shard::base::PrmSource            source(path.string());
+  const shard::base::PrmSource source = shard::test_support::scene_source(
+    "shard_box_mesh_test.prm",
+    "subsection B - Mesh\n set body names = slab, bar\n"
+    " subsection slab\n  set shape = box\n  set lower corner = -0.05, -0.04, -0.03\n"
+    "  set upper corner = 0.05, 0.04, 0.0\n  set element size = 0.01\n  set grading = 1.3\n"
+    "  set fine lower corner = -0.02, -0.01, -0.03\n  set fine upper corner = 0.01, 0.01, -0.01\n"
+    "  set material = steel\n end\n"
+    " subsection bar\n  set shape = rod\n  set axis = y\n  set origin = 0.1, 0.2, 0.3\n"
+    "  set length = 0.05\n  set width = 0.01\n  set element size = 0.004\n  set material = steel\n end\n"
+    "end\n" +
+      shard::test_support::elastic_steel());
   shard::mesh::Discretization       discretization{MPI_COMM_SELF};
   shard::materials::MaterialLibrary library;
   ParameterHandler                  prm;

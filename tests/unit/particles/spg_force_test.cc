@@ -9,13 +9,13 @@
 #include <shard/particles/particle_set.h>
 #include <shard/particles/spg_force.h>
 
+#include <support/scene_text.h>
+
 #include <deal.II/base/parameter_handler.h>
 
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <filesystem>
-#include <fstream>
 #include <string>
 
 namespace
@@ -34,15 +34,9 @@ namespace
 
     Block()
     {
-      const auto path = std::filesystem::temp_directory_path() / "shard_spg_force_test.prm";
-      std::ofstream(path) << "subsection B - Mesh\n set body names = cube\n subsection cube\n  set shape = box\n"
-                             "  set lower corner = 0, 0, 0\n  set upper corner = 1, 1, 1\n  set refinement = 2\n"
-                             "  set material = steel\n end\nend\n"
-                             "subsection C - Materials\n set material names = steel\n subsection steel\n"
-                             "  set model = elastic\n  set density = 7850\n  set young's modulus = 200e9\n"
-                             "  set poisson's ratio = 0.3\n end\nend\n"
-                             "subsection E - Particles\n set bodies = cube\nend\n";
-      source = base::PrmSource(path.string());
+      source = test_support::scene_source("shard_spg_force_test.prm",
+                                          test_support::unit_cube(2) + test_support::elastic_steel() +
+                                            "subsection E - Particles\n set bodies = cube\nend\n");
       base::read_parameters(prm, {&discretization, &library, &particles, &spg}, source);
       discretization.prepare(source);
       library.prepare();

@@ -18,14 +18,15 @@
 #include <shard/simulation/explicit_step.h>
 #include <shard/time/central_difference.h>
 
+#include <support/scene_text.h>
+
 #include <deal.II/base/parameter_handler.h>
 
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <filesystem>
-#include <fstream>
 #include <iomanip>
+#include <sstream>
 #include <string>
 
 namespace
@@ -60,18 +61,14 @@ namespace
 
     explicit OneElementStep(const double dt)
     {
-      const auto path = std::filesystem::temp_directory_path() / "shard_explicit_step_test.prm";
-      std::ofstream(path) << "subsection B - Mesh\n set body names = cube\n subsection cube\n  set shape = box\n"
-                             "  set lower corner = 0, 0, 0\n  set upper corner = 1, 1, 1\n  set refinement = 0\n"
-                             "  set material = steel\n end\nend\n"
-                             "subsection C - Materials\n set material names = steel\n subsection steel\n"
-                             "  set model = elastic\n  set density = 7850\n  set young's modulus = 200e9\n"
-                             "  set poisson's ratio = 0.3\n end\nend\n"
-                             "subsection D - Finite elements\n set bulk viscosity linear = 0\n"
-                             " set bulk viscosity quadratic = 0\nend\n"
-                             "subsection J - Time integration\n set end time = 1\n set fixed time step = "
-                          << std::setprecision(17) << dt << "\nend\n";
-      source = base::PrmSource(path.string());
+      std::ostringstream step;
+      step << std::setprecision(17) << dt;
+      source = test_support::scene_source("shard_explicit_step_test.prm",
+                                          test_support::unit_cube(0) + test_support::elastic_steel() +
+                                            "subsection D - Finite elements\n set bulk viscosity linear = 0\n"
+                                            " set bulk viscosity quadratic = 0\nend\n"
+                                            "subsection J - Time integration\n set end time = 1\n"
+                                            " set fixed time step = " + step.str() + "\nend\n");
       base::read_parameters(prm,
                             {&discretization, &materials, &particles, &bonds, &conversion, &contact, &hex, &spg,
                              &conditions, &integrator},
