@@ -8,7 +8,7 @@
  * A rank blocked in an MPI call spins in the library's progress loop. On dedicated cores that
  * costs nothing, but with more ranks than cores (a workstation, the oversubscribed tests) the
  * spinning ranks take CPU from the working ones and book it as their own CPU time, so the set-up
- * of many ranks looks like much more work than it is (doc/performance.md, "Scaling"). This wait
+ * of many ranks looks like much more work than it is (doc/performance.md, "MPI scaling"). This wait
  * tests the request every 50 us and sleeps in between: on dedicated cores it adds at most that
  * latency, which is negligible where it is used (rank 0's coarse solve of the correction).
  */
