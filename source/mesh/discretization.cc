@@ -784,14 +784,14 @@ namespace shard::mesh
                       for (unsigned int v = 0; v < 8; ++v)
                         {
                           const unsigned int vi = i + (v & 1), vj = j + ((v >> 1) & 1), vl = l + (v >> 2);
-                          x[v]                  = grid_point(vi, vj, vl);
                           auto &n = number[(std::uint64_t(vl) * (ny + 1) + vj) * (nx + 1) + vi];
                           if (n == ~std::uint64_t(0))
                             {
                               n = vertices.size();
-                              vertices.push_back(x[v]);
+                              vertices.push_back(grid_point(vi, vj, vl));
                             }
                           c.vertices[v] = static_cast<unsigned int>(n);
+                          x[v]          = vertices[n];
                         }
                       judge_cell(worst, x, index);
                       c.material_id = k;

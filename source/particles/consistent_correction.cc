@@ -357,25 +357,23 @@ namespace shard::particles
         std::vector<double>          members;
         if (root)
           {
+            std::vector<std::array<long long, 4>>             part_key(received.size() / 8);
             std::map<std::array<long long, 4>, unsigned int> global;
-            for (std::size_t p = 0; p < received.size() / 8; ++p)
-              global.emplace(std::array<long long, 4>{{static_cast<long long>(received[8 * p]),
-                                                       static_cast<long long>(received[8 * p + 1]),
-                                                       static_cast<long long>(received[8 * p + 2]),
-                                                       static_cast<long long>(received[8 * p + 3])}},
-                             0u);
+            for (std::size_t p = 0; p < part_key.size(); ++p)
+              {
+                for (unsigned int c = 0; c < 4; ++c)
+                  part_key[p][c] = static_cast<long long>(received[8 * p + c]);
+                global.emplace(part_key[p], 0u);
+              }
             n_aggregates_ = 0;
             for (auto &entry : global)
               entry.second = n_aggregates_++;
             centroid.assign(n_aggregates_, Eigen::Vector3d::Zero());
             members.assign(n_aggregates_, 0.);
-            aggregate_of_part.resize(received.size() / 8);
+            aggregate_of_part.resize(part_key.size());
             for (std::size_t p = 0; p < aggregate_of_part.size(); ++p)
               {
-                const unsigned int a = global.at({{static_cast<long long>(received[8 * p]),
-                                                   static_cast<long long>(received[8 * p + 1]),
-                                                   static_cast<long long>(received[8 * p + 2]),
-                                                   static_cast<long long>(received[8 * p + 3])}});
+                const unsigned int a = global.at(part_key[p]);
                 aggregate_of_part[p] = a;
                 members[a] += received[8 * p + 4];
                 centroid[a] += Eigen::Vector3d(received[8 * p + 5], received[8 * p + 6], received[8 * p + 7]);
