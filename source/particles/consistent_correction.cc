@@ -95,22 +95,44 @@ namespace shard::particles
   void
   ConsistentCorrection::apply(const double *lambda, double *y) const
   {
+    // The hot kernel of the CG loop (one application per iteration): each row's fit
+    // and residual in 4-vectors of the basis (p_J = (1, dX / l)), so that both passes run as
+    // packet operations (Eigen) instead of 24 scalar multiply-adds per entry.
+    using Vector4 = Eigen::Vector4d;
     const Stencil &g = st_.g;
     std::fill(y, y + 3 * n_j_, 0.);
-    double mu[12];
     for (unsigned int i = 0; i < n_i_; ++i)
       {
         if (std::isnan(inverse_moment_[16 * i]))
           continue;
-        row_fit(i, lambda, mu);
-        const double w = volume_[i] * volume_[i];
-        for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+        const unsigned int begin = g.row_offsets[i], end = g.row_offsets[i + 1];
+        // s_c = sum_J p_J lambda_Jc, one 4-vector per component c.
+        Vector4 s0 = Vector4::Zero(), s1 = Vector4::Zero(), s2 = Vector4::Zero();
+        for (unsigned int e = begin; e < end; ++e)
           {
-            const double *p = &basis_[4 * e];
-            const double *l = &lambda[3 * g.columns[e]];
+            const Eigen::Map<const Vector4> p(&basis_[4 * e]);
+            const double                   *l = &lambda[3 * g.columns[e]];
+            s0 += l[0] * p;
+            s1 += l[1] * p;
+            s2 += l[2] * p;
+          }
+        // mu_c = M^-1 s_c; the columns of mt are the rows of mu (component c in entry c).
+        const Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>> inv(&inverse_moment_[16 * i]);
+        const Vector4   mu0 = inv * s0, mu1 = inv * s1, mu2 = inv * s2;
+        Eigen::Matrix4d mt;
+        mt << mu0(0), mu0(1), mu0(2), mu0(3), //
+          mu1(0), mu1(1), mu1(2), mu1(3),     //
+          mu2(0), mu2(1), mu2(2), mu2(3),     //
+          0., 0., 0., 0.;
+        const double w = volume_[i] * volume_[i];
+        for (unsigned int e = begin; e < end; ++e)
+          {
+            const Eigen::Map<const Vector4> p(&basis_[4 * e]);
+            const Vector4                   t = mt * p; // (p_J^T mu_c)_c
+            const double                   *l = &lambda[3 * g.columns[e]];
+            double                         *o = &y[3 * g.columns[e]];
             for (unsigned int c = 0; c < 3; ++c)
-              y[3 * g.columns[e] + c] +=
-                w * (l[c] - p[0] * mu[c] - p[1] * mu[3 + c] - p[2] * mu[6 + c] - p[3] * mu[9 + c]);
+              o[c] += w * (l[c] - t(c));
           }
       }
   }
@@ -256,16 +278,20 @@ namespace shard::particles
                   }
             }
       }
+    // In block order (a fixed order; a rank's list has no duplicates, so the order does not change
+    // the sums on rank 0, which adds the ranks' lists in rank order).
+    std::vector<std::pair<std::uint64_t, const Block *>> sorted;
+    sorted.reserve(blocks.size());
+    for (const auto &[key, blk] : blocks)
+      sorted.emplace_back(key, &blk);
+    std::sort(sorted.begin(), sorted.end(), [](const auto &x, const auto &y) { return x.first < y.first; });
     std::vector<CoarseEntry> out;
     out.reserve(16 * blocks.size());
-    for (const auto &[key, blk] : blocks)
-      for (unsigned int r = 0; r < blk.rows; ++r)
-        for (unsigned int c = 0; c < blk.columns; ++c)
+    for (const auto &[key, blk] : sorted)
+      for (unsigned int r = 0; r < blk->rows; ++r)
+        for (unsigned int c = 0; c < blk->columns; ++c)
           out.push_back({static_cast<unsigned int>(key >> 32) + r, static_cast<unsigned int>(key & 0xffffffffu) + c,
-                         blk.v[4 * r + c]});
-    std::sort(out.begin(), out.end(), [](const CoarseEntry &x, const CoarseEntry &y) {
-      return x.row != y.row ? x.row < y.row : x.column < y.column;
-    });
+                         blk->v[4 * r + c]});
     return out;
   }
 
@@ -625,9 +651,11 @@ namespace shard::particles
     owned_dot(const std::vector<double> &a, const std::vector<double> &b, const unsigned int n_owned,
               const CorrectionExchange &exchange)
     {
-      std::vector<double> s(1, 0.);
+      double sum = 0; // a local accumulator: a[k] * b[k] added into a vector's element would be
+                      // stored and loaded again in every step (the vectors may alias)
       for (unsigned int k = 0; k < 3 * n_owned; ++k)
-        s[0] += a[k] * b[k];
+        sum += a[k] * b[k];
+      std::vector<double> s(1, sum);
       exchange.sum(s);
       return s[0];
     }
@@ -685,13 +713,21 @@ namespace shard::particles
       project(std::vector<double> &v)
       {
         std::fill(moments_.begin(), moments_.end(), 0.);
-        for (unsigned int i = 0; i < n_owned_; ++i)
+        // Runs of one component (the particles are ordered by body) sum into a local array.
+        for (unsigned int i = 0; i < n_owned_;)
           {
-            double pv[4];
-            basis(i, pv);
-            for (unsigned int a = 0; a < 4; ++a)
-              for (unsigned int c = 0; c < 3; ++c)
-                moments_[12 * component_[i] + 3 * a + c] += pv[a] * v[3 * i + c];
+            const unsigned int b   = component_[i];
+            double             m[12] = {};
+            for (; i < n_owned_ && component_[i] == b; ++i)
+              {
+                double pv[4];
+                basis(i, pv);
+                for (unsigned int a = 0; a < 4; ++a)
+                  for (unsigned int c = 0; c < 3; ++c)
+                    m[3 * a + c] += pv[a] * v[3 * i + c];
+              }
+            for (unsigned int k = 0; k < 12; ++k)
+              moments_[12 * b + k] += m[k];
           }
         exchange_.sum(moments_);
         std::fill(fit_.begin(), fit_.end(), 0.);

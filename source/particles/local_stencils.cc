@@ -86,14 +86,23 @@ namespace shard::particles
       add(c);
     out.n_j = out.cloud_index.size();
 
-    // A rows: RK values at every particle J.
-    std::vector<Point3> xj(out.n_j);
-    for (unsigned int j = 0; j < out.n_j; ++j)
-      xj[j] = cloud.position[out.cloud_index[j]];
-    CsrPattern n_j = find_support_neighbors(xj, cloud.position, radii, params.support);
-    filter_components(n_j, components_of(out.cloud_index), cloud.component);
-    for (const unsigned int c : n_j.columns)
-      add(c);
+    // A rows: RK values at every particle J. The owned J are the rows of G (the same points and
+    // the same neighbours: the bins depend on the cloud only), so only the other J (this rank's
+    // halo) are evaluated again.
+    const unsigned int  n_halo = out.n_j - out.n_i;
+    std::vector<Point3> xh(n_halo);
+    for (unsigned int h = 0; h < n_halo; ++h)
+      xh[h] = cloud.position[out.cloud_index[out.n_i + h]];
+    CsrPattern n_h;
+    if (n_halo > 0)
+      {
+        n_h = find_support_neighbors(xh, cloud.position, radii, params.support);
+        filter_components(n_h, components_of(std::vector<unsigned int>(out.cloud_index.begin() + out.n_i,
+                                                                       out.cloud_index.end())),
+                          cloud.component);
+        for (const unsigned int c : n_h.columns)
+          add(c);
+      }
     out.n_k = out.cloud_index.size();
 
     out.g = build_rk_stencil(xi, cloud.position, radii, n_owned, params);
@@ -102,26 +111,33 @@ namespace shard::particles
         out.fallback.push_back(owned[i]);
     remap_columns(out.g, compact, out.n_j);
 
-    Stencil a = build_rk_stencil(xj, cloud.position, radii, n_j, params);
-    remap_columns(a, compact, out.n_k);
+    Stencil a;
+    if (n_halo > 0)
+      {
+        a = build_rk_stencil(xh, cloud.position, radii, n_h, params);
+        remap_columns(a, compact, out.n_k);
+      }
     // Identity rows where the particle interpolates (essential and traction boundaries).
     out.a.row_offsets.assign(1, 0u);
     out.a.n_columns = out.n_k;
     for (unsigned int j = 0; j < out.n_j; ++j)
       {
+        const bool     owned_row = j < out.n_i;
+        const Stencil &from      = owned_row ? out.g : a;
+        const unsigned int row   = owned_row ? j : j - out.n_i;
         if (cloud.interpolating[out.cloud_index[j]])
           {
             out.a.columns.push_back(j);
             out.a.psi.push_back(1.);
           }
         else
-          for (unsigned int e = a.row_offsets[j]; e < a.row_offsets[j + 1]; ++e)
+          for (unsigned int e = from.row_offsets[row]; e < from.row_offsets[row + 1]; ++e)
             {
-              out.a.columns.push_back(a.columns[e]);
-              out.a.psi.push_back(a.psi[e]);
+              out.a.columns.push_back(from.columns[e]);
+              out.a.psi.push_back(from.psi[e]);
             }
-        out.a.fallback.push_back(a.fallback[j]);
-        out.a.rcond.push_back(a.rcond[j]);
+        out.a.fallback.push_back(from.fallback[row]);
+        out.a.rcond.push_back(from.rcond[row]);
         out.a.row_offsets.push_back(out.a.columns.size());
       }
     return out;

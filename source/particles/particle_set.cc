@@ -204,40 +204,65 @@ namespace shard::particles
       const MPI_Comm comm = discretization.communicator();
       const auto    &pt   = *discretization.partitioner();
       Components     out;
-      std::map<std::uint64_t, std::uint64_t> parent;
+      // This rank's union-find over its local node entries (owned and ghost, by j / 3 of the
+      // node's first local entry j), the smaller global id the root: dense arrays, no map.
+      const unsigned int        n_local = pt.locally_owned_size() + pt.n_ghost_indices();
+      constexpr unsigned int    absent  = numbers::invalid_unsigned_int;
+      std::vector<unsigned int> parent(n_local / 3 + 1, absent);
+      std::vector<std::uint64_t> id(n_local / 3 + 1, 0);
+      std::vector<unsigned int>  present; // the slots of the nodes of converted cells, in first-seen order
+      const auto slot_of = [&](const std::uint64_t node) {
+        const unsigned int j = pt.global_to_local(3 * node);
+        AssertThrow(j % 3 == 0, ExcInternalError());
+        const unsigned int s = j / 3;
+        if (parent[s] == absent)
+          {
+            parent[s] = s;
+            id[s]     = node;
+            present.push_back(s);
+          }
+        return s;
+      };
+      const auto root_of = [&](unsigned int s) {
+        while (parent[s] != s)
+          s = parent[s] = parent[parent[s]];
+        return s;
+      };
       for (std::size_t c = 0; c < cell_nodes.size(); c += 8)
         {
-          for (unsigned int v = 0; v < 8; ++v)
-            parent.emplace(cell_nodes[c + v], cell_nodes[c + v]);
+          const unsigned int first = slot_of(cell_nodes[c]);
           for (unsigned int v = 1; v < 8; ++v)
             {
-              const auto a = find_root(parent, cell_nodes[c]), b = find_root(parent, cell_nodes[c + v]);
+              const unsigned int a = root_of(first), b = root_of(slot_of(cell_nodes[c + v]));
               if (a != b)
-                parent[std::max(a, b)] = std::min(a, b);
+                {
+                  if (id[a] < id[b])
+                    parent[b] = a;
+                  else
+                    parent[a] = b;
+                }
             }
         }
       // Node ids are below 2^53, exact as doubles.
       constexpr double none = 1e300;
       out.label.reinit(discretization.partitioner());
-      for (unsigned int j = 0; j < pt.locally_owned_size() + pt.n_ghost_indices(); ++j)
+      for (unsigned int j = 0; j < n_local; ++j)
         out.label.local_element(j) = none;
-      for (const auto &[node, p] : parent)
-        {
-          const unsigned int j       = pt.global_to_local(3 * node);
-          out.label.local_element(j) = std::min(out.label.local_element(j), double(find_root(parent, node)));
-        }
+      for (const unsigned int s : present)
+        out.label.local_element(3 * s) = std::min(out.label.local_element(3 * s), double(id[root_of(s)]));
       out.label.compress(VectorOperation::min);
       out.label.update_ghost_values();
       // Roots that meet another rank's at a shared node: pairs (larger, smaller), each once.
       std::set<std::pair<std::uint64_t, std::uint64_t>> met;
       std::vector<std::uint64_t>                        pairs, mine;
-      for (const auto &[node, p] : parent)
+      std::sort(present.begin(), present.end(), [&](const unsigned int a, const unsigned int b) { return id[a] < id[b]; });
+      for (const unsigned int s : present)
         {
-          const std::uint64_t r = find_root(parent, node);
-          const double        l = out.label.local_element(pt.global_to_local(3 * node));
+          const std::uint64_t r = id[root_of(s)];
+          const double        l = out.label.local_element(3 * s);
           if (l < double(r))
             met.emplace(r, static_cast<std::uint64_t>(l));
-          if (node == r)
+          if (id[s] == r)
             mine.push_back(r);
         }
       for (const auto &[r, l] : met)

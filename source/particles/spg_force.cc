@@ -60,6 +60,16 @@ namespace shard::particles
     {
       return tensor::principal_stretches(F)[0];
     }
+
+    /// The offsets of consecutive parts of @p counts entries each (counts.size() + 1 of them).
+    std::vector<int>
+    offsets_of(const std::vector<int> &counts)
+    {
+      std::vector<int> offsets(counts.size() + 1, 0);
+      for (std::size_t r = 0; r < counts.size(); ++r)
+        offsets[r + 1] = offsets[r] + counts[r];
+      return offsets;
+    }
   } // namespace
 
   bool
@@ -278,10 +288,9 @@ namespace shard::particles
     exchange.gather = [comm](const std::vector<double> &a) {
       const int           n_ranks = Utilities::MPI::n_mpi_processes(comm);
       int                 n       = static_cast<int>(a.size());
-      std::vector<int>    counts(n_ranks), offsets(n_ranks + 1, 0);
+      std::vector<int>    counts(n_ranks);
       MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, comm);
-      for (int r = 0; r < n_ranks; ++r)
-        offsets[r + 1] = offsets[r] + counts[r];
+      const auto          offsets = offsets_of(counts);
       std::vector<double> all(offsets[n_ranks]);
       MPI_Allgatherv(a.data(), n, MPI_DOUBLE, all.data(), counts.data(), offsets.data(), MPI_DOUBLE, comm);
       return all;
@@ -290,11 +299,10 @@ namespace shard::particles
       const int        n_ranks = Utilities::MPI::n_mpi_processes(comm);
       const bool       root    = Utilities::MPI::this_mpi_process(comm) == 0;
       int              n       = static_cast<int>(a.size());
-      std::vector<int> counts(root ? n_ranks : 0), offsets(root ? n_ranks + 1 : 1, 0);
+      std::vector<int> counts(root ? n_ranks : 0);
       int              ierr = MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, comm);
       AssertThrowMPI(ierr);
-      for (int r = 0; r < static_cast<int>(counts.size()); ++r)
-        offsets[r + 1] = offsets[r] + counts[r];
+      const auto          offsets = offsets_of(counts); // one entry (0) on the other ranks
       std::vector<double> all(offsets.back());
       ierr = MPI_Gatherv(a.data(), n, MPI_DOUBLE, all.data(), counts.data(), offsets.data(), MPI_DOUBLE, 0, comm);
       AssertThrowMPI(ierr);
@@ -302,11 +310,8 @@ namespace shard::particles
     };
     exchange.from_root = [comm](const std::vector<double> &all, const std::vector<int> &lengths,
                                 const unsigned int n_mine) {
-      const bool       root = Utilities::MPI::this_mpi_process(comm) == 0;
-      std::vector<int> offsets(root ? lengths.size() + 1 : 1, 0);
-      if (root)
-        for (std::size_t r = 0; r < lengths.size(); ++r)
-          offsets[r + 1] = offsets[r] + lengths[r];
+      const bool          root    = Utilities::MPI::this_mpi_process(comm) == 0;
+      const auto          offsets = offsets_of(root ? lengths : std::vector<int>());
       std::vector<double> mine(n_mine);
       MPI_Request         request;
       int ierr = MPI_Iscatterv(all.data(), lengths.data(), offsets.data(), MPI_DOUBLE, mine.data(),

@@ -122,7 +122,8 @@ namespace shard::particles
      * J's aggregate at J, a row contributes V_I^2 [sum_J z_J z_J^T (block diagonal per aggregate)
      * - T^T M_I^-1 T], T = sum_J p_J z_J^T: the same projection as apply(), without forming
      * (1 - P_I) Z. Rows whose stencil lies in one aggregate add nothing (its functions are linear).
-     * @return the entries (global coarse indices), one per (row, column), sorted
+     * @return the entries (global coarse indices), one per (row, column), in block order (4 x 4 blocks
+     *         by (aggregate, aggregate)), without duplicates
      */
     std::vector<CoarseEntry>
     coarse_operator(const CoarseFunctions &functions) const;
