@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <iterator>
 #include <map>
+#include <numeric>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -206,7 +207,14 @@ namespace shard::particles
       std::array<double, 16> v{};
       unsigned char          rows = 0, columns = 0;
     };
-    std::unordered_map<std::uint64_t, Block> blocks;
+    // The blocks by (aggregate, aggregate): each aggregate (by its first function) has a slot,
+    // and each slot a short list of its neighbours' blocks (a row's k aggregates need k lookups
+    // in a hash map and k^2 in these lists, not k^2 hash lookups).
+    std::vector<Block>                                            blocks;
+    std::unordered_map<unsigned int, unsigned int>                slot_of;
+    std::vector<unsigned int>                                     first_of_slot;
+    std::vector<std::vector<std::pair<unsigned int, unsigned int>>> neighbours; // (first of b, block)
+    std::vector<unsigned int>                                     row_slot;
     // Per row: the aggregates of its stencil (first function, count, first column in T).
     std::vector<unsigned int> agg_first, agg_column;
     std::vector<unsigned char> agg_count;
@@ -262,10 +270,30 @@ namespace shard::particles
             for (unsigned int c = 0; c < n_col; ++c)
               u[n_col * q + c] += inv[4 * q + s] * t[n_col * s + c];
         const double w = volume_[i] * volume_[i];
+        row_slot.clear();
+        for (const unsigned int f : agg_first)
+          {
+            const auto [it, added] = slot_of.emplace(f, static_cast<unsigned int>(first_of_slot.size()));
+            if (added)
+              {
+                first_of_slot.push_back(f);
+                neighbours.emplace_back();
+              }
+            row_slot.push_back(it->second);
+          }
         for (unsigned int a = 0; a < agg_first.size(); ++a)
           for (unsigned int b = 0; b < agg_first.size(); ++b)
             {
-              Block &blk  = blocks[(std::uint64_t(agg_first[a]) << 32) | agg_first[b]];
+              auto        &list = neighbours[row_slot[a]];
+              unsigned int q    = 0;
+              while (q < list.size() && list[q].first != agg_first[b])
+                ++q;
+              if (q == list.size())
+                {
+                  list.emplace_back(agg_first[b], static_cast<unsigned int>(blocks.size()));
+                  blocks.emplace_back();
+                }
+              Block &blk  = blocks[list[q].second];
               blk.rows    = agg_count[a];
               blk.columns = agg_count[b];
               for (unsigned int r = 0; r < agg_count[a]; ++r)
@@ -280,18 +308,25 @@ namespace shard::particles
       }
     // In block order (a fixed order; a rank's list has no duplicates, so the order does not change
     // the sums on rank 0, which adds the ranks' lists in rank order).
-    std::vector<std::pair<std::uint64_t, const Block *>> sorted;
-    sorted.reserve(blocks.size());
-    for (const auto &[key, blk] : blocks)
-      sorted.emplace_back(key, &blk);
-    std::sort(sorted.begin(), sorted.end(), [](const auto &x, const auto &y) { return x.first < y.first; });
+    std::vector<unsigned int> slots(first_of_slot.size());
+    std::iota(slots.begin(), slots.end(), 0u);
+    std::sort(slots.begin(), slots.end(), [&](const unsigned int x, const unsigned int y) {
+      return first_of_slot[x] < first_of_slot[y];
+    });
     std::vector<CoarseEntry> out;
     out.reserve(16 * blocks.size());
-    for (const auto &[key, blk] : sorted)
-      for (unsigned int r = 0; r < blk->rows; ++r)
-        for (unsigned int c = 0; c < blk->columns; ++c)
-          out.push_back({static_cast<unsigned int>(key >> 32) + r, static_cast<unsigned int>(key & 0xffffffffu) + c,
-                         blk->v[4 * r + c]});
+    for (const unsigned int slot : slots)
+      {
+        auto &list = neighbours[slot];
+        std::sort(list.begin(), list.end());
+        for (const auto &[first_b, index] : list)
+          {
+            const Block &blk = blocks[index];
+            for (unsigned int r = 0; r < blk.rows; ++r)
+              for (unsigned int c = 0; c < blk.columns; ++c)
+                out.push_back({first_of_slot[slot] + r, first_b + c, blk.v[4 * r + c]});
+          }
+      }
     return out;
   }
 
