@@ -381,20 +381,18 @@ namespace shard::particles
         aggregate_.resize(n_owned_);
         for (unsigned int i = 0; i < n_owned_; ++i)
           aggregate_[i] = index.at(key[i]);
-        // The number of local aggregates of every rank: the lengths of the parts below.
-        std::vector<int> parts(1, static_cast<int>(n_parts));
-        if (exchange.gather)
-          {
-            const auto all = exchange.gather(std::vector<double>{double(n_parts)});
-            parts.assign(all.begin(), all.end());
-          }
+        const auto up = [&](std::vector<double> v) { return exchange.to_root ? exchange.to_root(v) : v; };
+        // On rank 0: the number of local aggregates of every rank, the lengths of the parts below
+        // (the other ranks need no lengths: from_root reads them on rank 0 only).
+        std::vector<int> parts;
+        for (const double n : up(std::vector<double>{double(n_parts)}))
+          parts.push_back(static_cast<int>(n));
         const auto lengths = [&](const int per_part) {
           std::vector<int> out(parts);
           for (auto &n : out)
             n *= per_part;
           return out;
         };
-        const auto up = [&](std::vector<double> v) { return exchange.to_root ? exchange.to_root(v) : v; };
         const auto down = [&](const std::vector<double> &all, const int per_part) {
           return exchange.from_root ? exchange.from_root(all, lengths(per_part), per_part * n_parts) : all;
         };

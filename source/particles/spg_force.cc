@@ -285,16 +285,6 @@ namespace shard::particles
       Utilities::MPI::sum(local, comm, a);
     };
     exchange.rank   = Utilities::MPI::this_mpi_process(comm);
-    exchange.gather = [comm](const std::vector<double> &a) {
-      const int           n_ranks = Utilities::MPI::n_mpi_processes(comm);
-      int                 n       = static_cast<int>(a.size());
-      std::vector<int>    counts(n_ranks);
-      MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, comm);
-      const auto          offsets = offsets_of(counts);
-      std::vector<double> all(offsets[n_ranks]);
-      MPI_Allgatherv(a.data(), n, MPI_DOUBLE, all.data(), counts.data(), offsets.data(), MPI_DOUBLE, comm);
-      return all;
-    };
     exchange.to_root = [comm](const std::vector<double> &a) {
       const int        n_ranks = Utilities::MPI::n_mpi_processes(comm);
       const bool       root    = Utilities::MPI::this_mpi_process(comm) == 0;
@@ -311,7 +301,7 @@ namespace shard::particles
     exchange.from_root = [comm](const std::vector<double> &all, const std::vector<int> &lengths,
                                 const unsigned int n_mine) {
       const bool          root    = Utilities::MPI::this_mpi_process(comm) == 0;
-      const auto          offsets = offsets_of(root ? lengths : std::vector<int>());
+      const auto          offsets = offsets_of(lengths); // lengths: on rank 0 only
       std::vector<double> mine(n_mine);
       MPI_Request         request;
       int ierr = MPI_Iscatterv(all.data(), lengths.data(), offsets.data(), MPI_DOUBLE, mine.data(),

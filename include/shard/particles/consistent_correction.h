@@ -155,9 +155,6 @@ namespace shard::particles
     std::function<void(std::vector<double> &)> distribute;
     /// Element-wise sum over ranks.
     std::function<void(std::vector<double> &)> sum;
-    /// The vectors of all ranks, concatenated in rank order (unset: one rank, identity). For
-    /// vectors of a few entries per rank only: the result is on every rank.
-    std::function<std::vector<double>(const std::vector<double> &)> gather;
     /// The vectors of all ranks, concatenated in rank order on rank 0; empty on the others (unset:
     /// one rank, identity). The coarse problem of the solve lives on rank 0 only.
     std::function<std::vector<double>(const std::vector<double> &)> to_root;
