@@ -186,13 +186,15 @@ namespace shard::particles
    * (round-off or mesh-distortion) component along linear fields, per @p component (e.g. body)
    * of the owned particles.
    *
-   * The preconditioner is Jacobi, plus, for @p coarse_size > 0, an additive coarse correction
-   * Z E^-1 Z^T with E = Z^T S Z: the owned particles are grouped into aggregates (cubes of edge
-   * coarse_size times the mean particle spacing, per component, over all ranks: the same coarse
-   * space at any rank count) and Z holds a constant
-   * and up to three linear functions per aggregate. S is a fourth-order operator, so Jacobi
-   * alone needs iterations growing as (L/h)^2 with the size L of the particle set; the coarse
-   * space bounds them by the aggregate size (decision 0009, doc/theory/spg_stabilization.md).
+   * The preconditioner is Jacobi, plus, for @p coarse_size > 0, a coarse space Z with
+   * E = Z^T S Z: the owned particles are grouped into aggregates (cubes of edge coarse_size times
+   * the mean particle spacing, per component, over all ranks: the same coarse space at any rank
+   * count) and Z holds a constant and up to three linear functions per aggregate. With the coarse
+   * space the solve starts from Q r (Q = Z E^-1 Z^T) and preconditions with
+   * z = w + Q (r - S w), w = D^-1 r (two-level "A-DEF2"; one more product with S per
+   * iteration). S is a fourth-order operator, so Jacobi alone needs iterations growing as
+   * (L/h)^2 with the size L of the particle set; the coarse space bounds them by the aggregate
+   * size (decision 0009, doc/theory/spg_stabilization.md).
    * @param lambda on return, the solution on every J (3 per J)
    * @param tolerance on |r - S lambda| / |r|
    * @param coarse_size aggregate edge in mean particle spacings (0: no coarse space)
