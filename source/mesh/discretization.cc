@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: LGPL-2.1-or-later
 #include <shard/base/function.h>
+#include <shard/base/hilbert.h>
 #include <shard/base/sections.h>
 #include <shard/mesh/discretization.h>
 #include <shard/mesh/gmsh_check.h>
@@ -945,11 +946,12 @@ namespace shard::mesh
           {
             // Body by body (in input order), the cells along a Hilbert curve through their
             // centres, on a grid of 2^20 equal steps per direction over the body's largest extent
-            // (ties by index). Cheap: 0.1 s for the Hanchak mesh, where ordering the vertex graph
-            // took 3.7 s. A body stays in one piece of the order, so two bodies in contact meet
-            // at the ranks' boundaries only where their parts meet (the head-on bars at 4 ranks:
-            // one curve through both sent 2.2 times the contact halo).
-            std::vector<std::array<std::uint64_t, 3>> key(n_cells);
+            // (ties by index; base::hilbert_index). Cheap: 0.05 s with the sort for the Hanchak
+            // mesh (deal.II's inverse_Hilbert_space_filling_curve took 0.1 s, ordering the
+            // vertex graph 3.7 s). A body stays in one piece of the order, so two bodies in
+            // contact meet at the ranks' boundaries only where their parts meet (the head-on bars
+            // at 4 ranks: one curve through both sent 2.2 times the contact halo).
+            std::vector<std::uint64_t> key(n_cells);
             for (std::uint64_t first_cell = 0; first_cell < n_cells;)
               {
                 std::uint64_t end = first_cell;
@@ -970,13 +972,14 @@ namespace shard::mesh
                       }
                   }
                 const double extent = std::max({high[0] - low[0], high[1] - low[1], high[2] - low[2], 1e-300});
-                const int    bits   = 20;
-                std::vector<std::array<std::uint64_t, 3>> grid(centre.size());
+                const unsigned int bits = 20;
                 for (std::size_t i = 0; i < centre.size(); ++i)
-                  for (unsigned int d = 0; d < 3; ++d)
-                    grid[i][d] = static_cast<std::uint64_t>((centre[i][d] - low[d]) / extent * ((1u << bits) - 1));
-                const auto curve = Utilities::inverse_Hilbert_space_filling_curve<3>(grid, bits);
-                std::copy(curve.begin(), curve.end(), key.begin() + first_cell);
+                  {
+                    std::array<std::uint32_t, 3> grid;
+                    for (unsigned int d = 0; d < 3; ++d)
+                      grid[d] = static_cast<std::uint32_t>((centre[i][d] - low[d]) / extent * ((1u << bits) - 1));
+                    key[first_cell + i] = base::hilbert_index(grid, bits);
+                  }
                 first_cell = end;
               }
             std::vector<std::uint64_t> sorted(n_cells);
