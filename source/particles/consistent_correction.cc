@@ -61,21 +61,24 @@ namespace shard::particles
   void
   ConsistentCorrection::row_fit(const unsigned int i, const double *lambda, double *mu) const
   {
+    // s_c = sum_J p_J lambda_Jc, one 4-vector of the basis per component c, so that the pass
+    // runs as packet operations (Eigen); then mu_c = M^-1 s_c.
+    using Vector4    = Eigen::Vector4d;
     const Stencil &g = st_.g;
-    double         s[12] = {};
+    Vector4        s0 = Vector4::Zero(), s1 = Vector4::Zero(), s2 = Vector4::Zero();
     for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
       {
-        const double *p = &basis_[4 * e];
-        const double *l = &lambda[3 * g.columns[e]];
-        for (unsigned int r = 0; r < 4; ++r)
-          for (unsigned int c = 0; c < 3; ++c)
-            s[3 * r + c] += p[r] * l[c];
+        const Eigen::Map<const Vector4> p(&basis_[4 * e]);
+        const double                   *l = &lambda[3 * g.columns[e]];
+        s0 += l[0] * p;
+        s1 += l[1] * p;
+        s2 += l[2] * p;
       }
-    const double *inv = &inverse_moment_[16 * i];
-    for (unsigned int r = 0; r < 4; ++r)
-      for (unsigned int c = 0; c < 3; ++c)
-        mu[3 * r + c] = inv[4 * r] * s[c] + inv[4 * r + 1] * s[3 + c] + inv[4 * r + 2] * s[6 + c] +
-                        inv[4 * r + 3] * s[9 + c];
+    const Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>> inv(&inverse_moment_[16 * i]);
+    Eigen::Map<Eigen::Matrix<double, 4, 3, Eigen::RowMajor>>             out(mu);
+    out.col(0) = inv * s0;
+    out.col(1) = inv * s1;
+    out.col(2) = inv * s2;
   }
 
   void
@@ -96,35 +99,22 @@ namespace shard::particles
   void
   ConsistentCorrection::apply(const double *lambda, double *y) const
   {
-    // The hot kernel of the CG loop (one application per iteration): each row's fit
-    // and residual in 4-vectors of the basis (p_J = (1, dX / l)), so that both passes run as
-    // packet operations (Eigen) instead of 24 scalar multiply-adds per entry.
+    // The hot kernel of the CG loop (one or two applications per iteration): each row's fit
+    // (row_fit) and residual in 4-vectors of the basis (p_J = (1, dX / l)), so that both passes
+    // run as packet operations (Eigen) instead of 24 scalar multiply-adds per entry.
     using Vector4 = Eigen::Vector4d;
     const Stencil &g = st_.g;
     std::fill(y, y + 3 * n_j_, 0.);
+    double mu[12];
     for (unsigned int i = 0; i < n_i_; ++i)
       {
         if (std::isnan(inverse_moment_[16 * i]))
           continue;
         const unsigned int begin = g.row_offsets[i], end = g.row_offsets[i + 1];
-        // s_c = sum_J p_J lambda_Jc, one 4-vector per component c.
-        Vector4 s0 = Vector4::Zero(), s1 = Vector4::Zero(), s2 = Vector4::Zero();
-        for (unsigned int e = begin; e < end; ++e)
-          {
-            const Eigen::Map<const Vector4> p(&basis_[4 * e]);
-            const double                   *l = &lambda[3 * g.columns[e]];
-            s0 += l[0] * p;
-            s1 += l[1] * p;
-            s2 += l[2] * p;
-          }
-        // mu_c = M^-1 s_c; the columns of mt are the rows of mu (component c in entry c).
-        const Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>> inv(&inverse_moment_[16 * i]);
-        const Vector4   mu0 = inv * s0, mu1 = inv * s1, mu2 = inv * s2;
-        Eigen::Matrix4d mt;
-        mt << mu0(0), mu0(1), mu0(2), mu0(3), //
-          mu1(0), mu1(1), mu1(2), mu1(3),     //
-          mu2(0), mu2(1), mu2(2), mu2(3),     //
-          0., 0., 0., 0.;
+        row_fit(i, lambda, mu);
+        // mt's rows are mu_c (component c in row c), so mt p = (p_J^T mu_c)_c.
+        Eigen::Matrix4d mt = Eigen::Matrix4d::Zero();
+        mt.topRows<3>()    = Eigen::Map<const Eigen::Matrix<double, 4, 3, Eigen::RowMajor>>(mu).transpose();
         const double w = volume_[i] * volume_[i];
         for (unsigned int e = begin; e < end; ++e)
           {

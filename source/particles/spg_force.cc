@@ -253,9 +253,9 @@ namespace shard::particles
       }
     const ConsistentCorrection correction(st, position, volume.data());
 
-    // Arrays over the rows J (3 per particle) move through one distributed vector.
+    // Arrays over the rows J (3 per particle) move through one distributed vector (not needed,
+    // and not allocated, on one rank with every J owned: below).
     mesh::Vector work;
-    discretization_->initialize_vector(work);
     const auto to_vector = [&](const std::vector<double> &a, const unsigned int n) {
       work = 0.;
       for (unsigned int j = 0; j < n; ++j)
@@ -282,6 +282,7 @@ namespace shard::particles
       }
     else
       {
+        discretization_->initialize_vector(work);
         exchange.assemble = [&](std::vector<double> &a) {
           to_vector(a, st.n_j);
           work.compress(VectorOperation::add);
