@@ -20,7 +20,7 @@
 namespace shard::particles
 {
   ConsistentCorrection::ConsistentCorrection(const LocalStencils &stencils, const std::vector<Point3> &position_j,
-                                             const double *volume)
+                                             const double *volume, const std::vector<char> *fixed)
     : st_(stencils)
     , n_i_(stencils.n_i)
     , n_j_(stencils.n_j)
@@ -28,6 +28,8 @@ namespace shard::particles
   {
     if (position_j.size() != n_j_)
       throw std::invalid_argument("ConsistentCorrection: one position per particle J expected");
+    if (fixed && fixed->size() != n_i_)
+      throw std::invalid_argument("ConsistentCorrection: one fixed flag per owned row expected");
     const Stencil &g = st_.g;
     basis_.resize(4 * g.columns.size());
     inverse_moment_.resize(16 * n_i_);
@@ -52,8 +54,9 @@ namespace shard::particles
               for (unsigned int c = 0; c < 4; ++c)
                 m[4 * r + c] += p[r] * p[c];
           }
-        // A stencil that does not span 3-D (a Shepard fallback row) is left uncorrected.
-        if (!invert_spd4(m, &inverse_moment_[16 * i]))
+        // A stencil that does not span 3-D (a Shepard fallback row) is left uncorrected, and so is
+        // a fixed row (its values are given).
+        if ((fixed && (*fixed)[i]) || !invert_spd4(m, &inverse_moment_[16 * i]))
           std::fill(&inverse_moment_[16 * i], &inverse_moment_[16 * i] + 16, std::nan(""));
       }
   }
@@ -322,6 +325,9 @@ namespace shard::particles
 
   namespace
   {
+    /// The component of a particle J that is not an unknown of a patch solve.
+    constexpr unsigned int outside = ~0u;
+
     /**
      * The additive coarse correction of the correction solve: aggregates of particles (cubes of
      * edge H per component, over all ranks), their constant and linear functions, E = Z^T S Z assembled
@@ -357,6 +363,8 @@ namespace shard::particles
         std::map<std::array<long long, 4>, unsigned int> index;
         for (unsigned int i = 0; i < n_owned_; ++i)
           {
+            if (component[i] == outside)
+              continue;
             key[i] = {{static_cast<long long>(component[i]), 0, 0, 0}};
             for (unsigned int c = 0; c < 3; ++c)
               key[i][c + 1] = static_cast<long long>(std::floor(position_j[i][c] / H));
@@ -370,7 +378,7 @@ namespace shard::particles
         }
         aggregate_.resize(n_owned_);
         for (unsigned int i = 0; i < n_owned_; ++i)
-          aggregate_[i] = index.at(key[i]);
+          aggregate_[i] = component[i] == outside ? outside : index.at(key[i]);
         const auto up = [&](std::vector<double> v) { return exchange.to_root ? exchange.to_root(v) : v; };
         // On rank 0: the number of local aggregates of every rank, the lengths of the parts below
         // (the other ranks need no lengths: from_root reads them on rank 0 only).
@@ -395,6 +403,8 @@ namespace shard::particles
             send[8 * a + c] = static_cast<double>(k[c]);
         for (unsigned int i = 0; i < n_owned_; ++i)
           {
+            if (aggregate_[i] == outside)
+              continue;
             send[8 * aggregate_[i] + 4] += 1.;
             for (unsigned int c = 0; c < 3; ++c)
               send[8 * aggregate_[i] + 5 + c] += position_j[i][c];
@@ -445,6 +455,8 @@ namespace shard::particles
         send.assign(9 * n_parts, 0.);
         for (unsigned int i = 0; i < n_owned_; ++i)
           {
+            if (aggregate_[i] == outside)
+              continue;
             const Eigen::Vector3d x =
               Eigen::Vector3d(position_j[i][0], position_j[i][1], position_j[i][2]) - part_centroid[aggregate_[i]];
             for (unsigned int r = 0; r < 3; ++r)
@@ -521,7 +533,9 @@ namespace shard::particles
         std::vector<double> head(3 * n_j, 0.), tail(3 * n_j, 0.);
         for (unsigned int i = 0; i < n_owned_; ++i)
           {
-            const unsigned int    a = aggregate_[i];
+            const unsigned int a = aggregate_[i];
+            if (a == outside)
+              continue; // no coarse function: first = count = 0
             const Eigen::Vector3d x =
               Eigen::Vector3d(position_j[i][0], position_j[i][1], position_j[i][2]) - part_centroid[a];
             const Eigen::Vector3d phi = scaled[a] * x;
@@ -707,6 +721,8 @@ namespace shard::particles
         std::vector<double> centroid(4 * n_components, 0.);
         for (unsigned int i = 0; i < n_owned_; ++i)
           {
+            if (component[i] == outside)
+              continue;
             centroid[4 * component[i]] += 1;
             for (unsigned int c = 0; c < 3; ++c)
               centroid[4 * component[i] + 1 + c] += position_j[i][c];
@@ -719,6 +735,8 @@ namespace shard::particles
         std::vector<double> pp(16 * n_components, 0.);
         for (unsigned int i = 0; i < n_owned_; ++i)
           {
+            if (component[i] == outside)
+              continue;
             double pv[4];
             basis(i, pv);
             for (unsigned int a = 0; a < 4; ++a)
@@ -741,6 +759,11 @@ namespace shard::particles
           {
             const unsigned int b   = component_[i];
             double             m[12] = {};
+            if (b == outside)
+              {
+                ++i;
+                continue;
+              }
             for (; i < n_owned_ && component_[i] == b; ++i)
               {
                 double pv[4];
@@ -763,6 +786,8 @@ namespace shard::particles
         double removed = 0;
         for (unsigned int i = 0; i < n_owned_; ++i)
           {
+            if (component_[i] == outside)
+              continue;
             double pv[4];
             basis(i, pv);
             for (unsigned int c = 0; c < 3; ++c)
@@ -805,7 +830,7 @@ namespace shard::particles
                               const std::vector<Point3> &position_j, const std::vector<unsigned int> &component,
                               const unsigned int n_components, const CorrectionExchange &exchange,
                               std::vector<double> &lambda, const double tolerance, const unsigned int max_iterations,
-                              const double coarse_size)
+                              const double coarse_size, const bool patch)
   {
     const unsigned int n_j = correction.n_j(), n_owned = component.size();
     std::vector<double> r(3 * n_j), z(3 * n_j), p(3 * n_j), q(3 * n_j), diag(3 * n_j);
@@ -817,11 +842,26 @@ namespace shard::particles
     const auto dot = [&](const std::vector<double> &a, const std::vector<double> &b) {
       return owned_dot(a, b, n_owned, exchange);
     };
-    CorrectionSolve out;
-    const double    r_norm = std::sqrt(dot(r, r));
+    // A patch solve: the particles no corrected row reaches are not unknowns. Their defect is
+    // what the fixed rows left there (the caller's to check), not part of this solve's.
+    std::vector<unsigned int> patch_component;
+    if (patch)
+      {
+        patch_component = component;
+        for (unsigned int i = 0; i < n_owned; ++i)
+          if (!(diag[3 * i] > 0))
+            {
+              patch_component[i] = outside;
+              for (unsigned int c = 0; c < 3; ++c)
+                r[3 * i + c] = 0.;
+            }
+      }
+    const std::vector<unsigned int> &unknowns = patch ? patch_component : component;
+    CorrectionSolve                  out;
+    const double                     r_norm = std::sqrt(dot(r, r));
 
     // Remove the component of r along the null space of S (fields linear in X), per component.
-    NullSpaceProjection projection(position_j, component, n_components, exchange);
+    NullSpaceProjection projection(position_j, unknowns, n_components, exchange);
     const double        removed = projection.project(r);
     out.initial_defect          = r_norm;
     out.inconsistency           = r_norm > 0 ? std::sqrt(removed) / r_norm : 0.;
@@ -829,7 +869,7 @@ namespace shard::particles
     std::unique_ptr<CoarseCorrection> coarse;
     if (coarse_size > 0)
       {
-        coarse                = std::make_unique<CoarseCorrection>(correction, position_j, component, coarse_size, exchange);
+        coarse                = std::make_unique<CoarseCorrection>(correction, position_j, unknowns, coarse_size, exchange);
         out.coarse_functions = coarse->n_functions();
         out.aggregates       = coarse->n_aggregates();
       }

@@ -64,8 +64,13 @@ namespace shard::particles
      * @param stencils the local stencils (must outlive this object)
      * @param position_j reference positions of the n_j particles J
      * @param volume V_I of the owned rows
+     * @param fixed optional, per owned row: nonzero for a row whose gradients are given (a patch
+     *        solve: the stencils hold the row's final values). A fixed row enters the defect with
+     *        its values and is not corrected (like a row whose stencil does not span 3-D);
+     *        corrected_gradients() returns it unchanged.
      */
-    ConsistentCorrection(const LocalStencils &stencils, const std::vector<Point3> &position_j, const double *volume);
+    ConsistentCorrection(const LocalStencils &stencils, const std::vector<Point3> &position_j, const double *volume,
+                         const std::vector<char> *fixed = nullptr);
 
     /// Partial r_J = a_J - sum_I V_I G_IJ (a_J added for owned J only); @p area 3 per owned row.
     void
@@ -198,11 +203,15 @@ namespace shard::particles
    * @param lambda on return, the solution on every J (3 per J)
    * @param tolerance on |r - S lambda| / |r|
    * @param coarse_size aggregate edge in mean particle spacings (0: no coarse space)
+   * @param patch a patch solve: only the particles J in the stencil of a corrected (not fixed)
+   *        row are unknowns; the others (zero diagonal of S) are left out of the null-space
+   *        projection and of the coarse space, and keep lambda = 0. Their defect must already
+   *        vanish (the caller checks the constraint afterwards).
    */
   CorrectionSolve
   solve_consistent_correction(const ConsistentCorrection &correction, const double *area,
                               const std::vector<Point3> &position_j, const std::vector<unsigned int> &component,
                               unsigned int n_components, const CorrectionExchange &exchange,
                               std::vector<double> &lambda, double tolerance = 1e-12, unsigned int max_iterations = 50000,
-                              double coarse_size = 0);
+                              double coarse_size = 0, bool patch = false);
 } // namespace shard::particles

@@ -597,6 +597,162 @@ TEST(SpgStability, CoarseSpaceKeepsTheCorrectionAndCutsIterations)
   EXPECT_LT(4 * iterations[1], iterations[0]);
 }
 
+// A patch solve of the consistent correction (the local update after a change of part of the
+// particle set, issue 28): rows whose plain RK gradients did not change keep their corrected
+// values (fixed), only the changed rows are corrected again, with their own multipliers. The
+// result must meet the integration constraint everywhere and keep every row linearly exact,
+// like the full solve, while touching a fraction of the rows. A jittered 14^3 block; the
+// particles within 2 spacings of the centre move by up to 0.3 spacing.
+TEST(SpgStability, PatchSolveKeepsTheConstraintWithTheOutsideFixed)
+{
+  const FormulationOptions options = make(Smoothing::two_level, Stabilization::none, 0, none);
+  const Block              b(14, 2.5, options, 0.2);
+  const unsigned int       m = b.size();
+  CorrectionExchange       one_rank;
+  one_rank.assemble = one_rank.distribute = one_rank.sum = [](std::vector<double> &) {};
+  const std::vector<unsigned int> component(m, 0u);
+
+  // 1. The full solve on the block: the corrected gradients of every row.
+  const ConsistentCorrection full(b.stencils, b.cloud.position, b.volume.data());
+  std::vector<double>        lambda;
+  const auto first = solve_consistent_correction(full, b.area.data(), b.cloud.position, component, 1, one_rank, lambda,
+                                                 1e-11, 50000, 3.);
+  ASSERT_TRUE(first.converged);
+  const std::vector<double> corrected = full.corrected_gradients(lambda.data());
+  ASSERT_EQ(full.limited_rows(), 0u);
+
+  // 2. Interior particles near the centre move (volumes and area vectors stay: they are interior).
+  ParticleCloud cloud = b.cloud;
+  const double  centre = 0.5 * (b.n - 1);
+  unsigned int  moved  = 0;
+  for (auto &x : cloud.position)
+    {
+      const double r = std::sqrt((x[0] - centre) * (x[0] - centre) + (x[1] - centre) * (x[1] - centre) +
+                                 (x[2] - centre) * (x[2] - centre));
+      if (r < 2)
+        {
+          x[0] += 0.3 * (1 - r / 2);
+          x[2] -= 0.1 * (1 - r / 2);
+          ++moved;
+        }
+    }
+  std::vector<unsigned int> owned(m);
+  for (unsigned int p = 0; p < m; ++p)
+    owned[p] = p;
+  RkParameters params;
+  params.dilation        = 2.5;
+  LocalStencils      st  = build_local_stencils(cloud, owned, params);
+  const Stencil     &g0  = b.stencils.g;
+  Stencil           &g   = st.g;
+  ASSERT_EQ(st.n_j, m);
+  for (unsigned int k = 0; k < m; ++k)
+    ASSERT_EQ(st.cloud_index[k], k);
+
+  // 3. A row is fixed when its plain gradients are those of step 1 (same columns, values equal to
+  // round-off); it then takes its corrected values from step 1.
+  std::vector<char> fixed(m, 0);
+  unsigned int      n_fixed = 0;
+  for (unsigned int i = 0; i < m; ++i)
+    {
+      const unsigned int b0 = g0.row_offsets[i], e0 = g0.row_offsets[i + 1];
+      const unsigned int b1 = g.row_offsets[i], e1 = g.row_offsets[i + 1];
+      bool               same = e1 - b1 == e0 - b0;
+      double             scale = 0;
+      for (unsigned int e = b0; same && e < e0; ++e)
+        for (unsigned int c = 0; c < 3; ++c)
+          scale = std::max(scale, std::abs(g0.grad[3 * e + c]));
+      for (unsigned int k = 0; same && k < e0 - b0; ++k)
+        {
+          same = g.columns[b1 + k] == g0.columns[b0 + k];
+          for (unsigned int c = 0; same && c < 3; ++c)
+            same = std::abs(g.grad[3 * (b1 + k) + c] - g0.grad[3 * (b0 + k) + c]) <= 1e-12 * scale;
+        }
+      if (!same)
+        continue;
+      fixed[i] = 1;
+      ++n_fixed;
+      for (unsigned int k = 0; k < e0 - b0; ++k)
+        for (unsigned int c = 0; c < 3; ++c)
+          g.grad[3 * (b1 + k) + c] = corrected[3 * (b0 + k) + c];
+    }
+  const unsigned int n_free = m - n_fixed;
+  EXPECT_GT(n_free, moved);
+  EXPECT_LT(3 * n_free, m); // the patch is a small part of the block
+
+  // 4. The patch solve, and the full solve on the moved cloud for comparison.
+  const ConsistentCorrection patch(st, cloud.position, b.volume.data(), &fixed);
+  const auto solve = solve_consistent_correction(patch, b.area.data(), cloud.position, component, 1, one_rank, lambda,
+                                                 1e-11, 50000, 3., true);
+  EXPECT_TRUE(solve.converged);
+  const std::vector<double> result = patch.corrected_gradients(lambda.data());
+  LocalStencils             st_full = build_local_stencils(cloud, owned, params);
+  const ConsistentCorrection again(st_full, cloud.position, b.volume.data());
+  std::vector<double>        lambda_full;
+  const auto full_solve = solve_consistent_correction(again, b.area.data(), cloud.position, component, 1, one_rank,
+                                                      lambda_full, 1e-11, 50000, 3.);
+  EXPECT_TRUE(full_solve.converged);
+  std::printf("patch solve: %u of %u rows corrected again (%u particles moved); %u iterations, %u coarse "
+              "functions, defect %.3e -> %.3e; the full solve: %u iterations, %u coarse functions\n",
+              n_free, m, moved, solve.iterations, solve.coarse_functions, solve.initial_defect, solve.final_defect,
+              full_solve.iterations, full_solve.coarse_functions);
+
+  // 5. The integration constraint sum_I V_I G_IJ = a_J over every column, and linear exactness of
+  // every row: sum_J G_IJ = 0, sum_J G_IJ (x) X_J = 1.
+  std::vector<double> sum(3 * m, 0.);
+  double              exactness = 0;
+  for (unsigned int i = 0; i < m; ++i)
+    {
+      double row[12] = {};
+      for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+        for (unsigned int c = 0; c < 3; ++c)
+          {
+            const double v = result[3 * e + c];
+            sum[3 * g.columns[e] + c] += b.volume[i] * v;
+            row[c] += v;
+            for (unsigned int d = 0; d < 3; ++d)
+              row[3 + 3 * c + d] += v * cloud.position[g.columns[e]][d];
+          }
+      for (unsigned int c = 0; c < 3; ++c)
+        {
+          exactness = std::max(exactness, std::abs(row[c]));
+          for (unsigned int d = 0; d < 3; ++d)
+            exactness = std::max(exactness, std::abs(row[3 + 3 * c + d] - (c == d ? 1. : 0.)));
+        }
+    }
+  double err = 0, plain_err = 0;
+  std::vector<double> plain(3 * m, 0.);
+  for (unsigned int i = 0; i < m; ++i)
+    for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+      for (unsigned int c = 0; c < 3; ++c)
+        plain[3 * g.columns[e] + c] += b.volume[i] * st_full.g.grad[3 * e + c];
+  for (unsigned int j = 0; j < 3 * m; ++j)
+    {
+      err       = std::max(err, std::abs(sum[j] - b.area[j]));
+      plain_err = std::max(plain_err, std::abs(plain[j] - b.area[j]));
+    }
+  std::printf("patch solve: max |sum_I V_I G_IJ - a_J| = %.3e (plain RK gradients: %.3e), linear exactness %.3e\n",
+              err, plain_err, exactness);
+  EXPECT_GT(plain_err, 1e-3); // the constraint is not met without the correction
+  EXPECT_LT(err, 1e-9);
+  EXPECT_LT(exactness, 1e-9);
+  // The fixed rows keep their values; the free rows differ from the full solve's (another valid
+  // correction: the smallest change of the patch rows, not of all rows).
+  const std::vector<double> reference = again.corrected_gradients(lambda_full.data());
+  double                    kept = 0, largest = 0, apart = 0;
+  for (unsigned int i = 0; i < m; ++i)
+    for (unsigned int e = g.row_offsets[i]; e < g.row_offsets[i + 1]; ++e)
+      for (unsigned int c = 0; c < 3; ++c)
+        {
+          largest = std::max(largest, std::abs(result[3 * e + c]));
+          if (fixed[i])
+            kept = std::max(kept, std::abs(result[3 * e + c] - g.grad[3 * e + c]));
+          else
+            apart = std::max(apart, std::abs(result[3 * e + c] - reference[3 * e + c]));
+        }
+  std::printf("patch solve: max |G_patch - G_full| over the corrected rows = %.2e of max |G|\n", apart / largest);
+  EXPECT_EQ(kept, 0.);
+}
+
 // The limiter of the consistent correction (doc/theory/spg_stabilization.md, "Correction
 // limiter"): no entry of a row's correction exceeds 4 / l_I, and a limited row still
 // differentiates linear fields exactly (sum_J G_IJ = 0, sum_J G_IJ (x) X_J = 1), because the
