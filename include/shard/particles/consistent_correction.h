@@ -205,8 +205,9 @@ namespace shard::particles
    * @param coarse_size aggregate edge in mean particle spacings (0: no coarse space)
    * @param patch a patch solve: only the particles J in the stencil of a corrected (not fixed)
    *        row are unknowns; the others (zero diagonal of S) are left out of the null-space
-   *        projection and of the coarse space, and keep lambda = 0. Their defect must already
-   *        vanish (the caller checks the constraint afterwards).
+   *        projection and of the coarse space, and keep lambda = 0. Their defect (what the fixed
+   *        rows leave there) is not part of this solve's residual or tolerance: the caller checks
+   *        the constraint there afterwards.
    */
   CorrectionSolve
   solve_consistent_correction(const ConsistentCorrection &correction, const double *area,
