@@ -501,7 +501,8 @@ namespace shard::particles
     restarting_      = false;
     prepared_broken_ = broken_;
     prepared_free_   = free_;
-    rebuild_broken_rows();
+    if (!defer_broken_rows_)
+      rebuild_broken_rows();
     report_fallback(comm, cloud);
   }
 
