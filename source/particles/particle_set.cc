@@ -495,14 +495,13 @@ namespace shard::particles
     set_compact_arrays(cloud, table.rows);
     set_owned_arrays(table.rows, owned);
     // Bonds broken before this rebuild (conversion, restart) stay broken: the ranks that hold
-    // a particle for the first time hear of its bonds, then the rows are rebuilt.
+    // a particle for the first time hear of its bonds; their rows stay plain until
+    // rebuild_broken_rows() (SpgForce::prepare(), after the gradient correction).
     set_targets(discretization);
     tell_targets(comm, restarting_);
     restarting_      = false;
     prepared_broken_ = broken_;
     prepared_free_   = free_;
-    if (!defer_broken_rows_)
-      rebuild_broken_rows();
     report_fallback(comm, cloud);
   }
 

@@ -148,6 +148,10 @@ namespace shard::particles
                                                                      Correction::consistent;
     if (!active_)
       return;
+    // The rows of broken bonds (ParticleSet::prepare() leaves them plain): rebuilt now, or, with
+    // the consistent correction, after its solve, which needs every row linearly exact.
+    if (options_.correction != Correction::consistent)
+      particles.rebuild_broken_rows();
     const auto        &st = particles.stencils();
     const unsigned int n  = st.n_i;
     const auto        &bodies = discretization.bodies();

@@ -175,7 +175,6 @@ namespace shard
     checkpoint_.prepare(discretization_, output_.directory(), fingerprint(), source_);
     if (checkpoint_.restarting())
       restore_topology();
-    particles_.defer_broken_rows(spg_.rebuilds_broken_rows()); // the correction sees plain rows
     particles_.prepare(discretization_, conversion_.converted_cells(), conditions_.faces(), source_);
     hex_.prepare(discretization_, materials_, conversion_.converted_cells());
     spg_.prepare(discretization_, particles_, materials_);

@@ -49,7 +49,11 @@ namespace shard::particles
      * faces count as boundary of the particle domain in the area vectors. Particles on the
      * faces listed in @p interpolating_faces (body name, boundary id, -1 for all faces of the
      * body) get interpolating rows too. RK supports stay within one connected component of
-     * converted cells. A second call rebuilds everything (conversion during the run).
+     * converted cells. A second call rebuilds everything (conversion during the run); the
+     * bonds broken before stay broken, but their rows are left plain (built from every
+     * neighbour) until rebuild_broken_rows(): SpgForce::prepare() calls it, after the consistent
+     * gradient correction, whose constraint system is consistent only when every row is linearly
+     * exact (a broken row, e.g. a free particle's empty row, is not).
      * @throws base::InputError if a listed body does not exist.
      * @note Collective; may widen the ghost set of @p discretization.
      */
@@ -299,19 +303,6 @@ namespace shard::particles
     void
     rebuild_broken_rows();
 
-    /**
-     * @brief Whether prepare() leaves the rows that hold a broken bond plain (built from every
-     * neighbour), for the caller to rebuild with rebuild_broken_rows(). The consistent gradient
-     * correction needs that: its constraint system is consistent only when every row is
-     * linearly exact, and a broken row (a free particle's empty row, a fragment too small for
-     * linear functions) is not (SpgForce, doc/theory/spg_stabilization.md).
-     */
-    void
-    defer_broken_rows(const bool defer)
-    {
-      defer_broken_rows_ = defer;
-    }
-
     /// The broken bonds and free particles as they were at the last prepare(): with them the
     /// consistent correction of the last prepare() is solved again (checkpoint).
     const std::vector<Bond> &
@@ -461,8 +452,6 @@ namespace shard::particles
     std::vector<std::pair<unsigned long long, unsigned int>> told_;
     /// Set by restore_broken(): the next prepare() cuts the lists to what this rank needs.
     bool restarting_ = false;
-    /// defer_broken_rows().
-    bool defer_broken_rows_ = false;
     double                          broken_rcond_limit_ = 0;
     /// Marks the entries of the local rows that hold a bond of @p bonds or a particle of
     /// @p free_ids (sorted); returns the rows of A and of G that changed.

@@ -283,14 +283,6 @@ namespace shard::particles
       return options_;
     }
 
-    /// Whether prepare() rebuilds the rows of broken bonds itself, after the consistent
-    /// correction (ParticleSet::defer_broken_rows()).
-    bool
-    rebuilds_broken_rows() const
-    {
-      return correction_text_ == "consistent";
-    }
-
     /// Outcome of the consistent-correction solve at set-up (zero iterations when not used).
     const CorrectionSolve &
     correction_solve() const
