@@ -12,6 +12,8 @@
 #include <fstream>
 #include <string>
 
+#include <unistd.h>
+
 namespace shard::test_support
 {
   /// `C - Materials` with one material `steel`: elastic, density 7850 kg/m^3, E 200 GPa, nu 0.3.
@@ -32,12 +34,24 @@ namespace shard::test_support
            std::to_string(refinement) + "\n  set material = steel\n end\nend\n";
   }
 
-  /// Writes @p text to @p name in the temporary directory and reads it as a parameter file.
+  /**
+   * Writes @p text to a file in the temporary directory, reads it as a parameter file and
+   * removes the file. The file name is @p name with the process id and a per-process count in
+   * front: ctest runs the tests of one program as concurrent processes, and a shared name let
+   * one test read the scene another was writing (HexForce failed that way in CI).
+   */
   inline base::PrmSource
   scene_source(const std::string &name, const std::string &text)
   {
-    const auto path = std::filesystem::temp_directory_path() / name;
-    std::ofstream(path) << text;
-    return base::PrmSource(path.string());
+    static unsigned int count = 0;
+    const auto          path  = std::filesystem::temp_directory_path() /
+                        (std::to_string(::getpid()) + "_" + std::to_string(count++) + "_" + name);
+    {
+      std::ofstream out(path);
+      out << text;
+    }
+    base::PrmSource source(path.string());
+    std::filesystem::remove(path);
+    return source;
   }
 } // namespace shard::test_support
