@@ -3,6 +3,8 @@
 // as integers, rows kept until the file opens, append on restart, non-finite columns.
 #include <shard/output/history.h>
 
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -60,7 +62,7 @@ TEST(HistoryTable, FirstNonFiniteColumn)
 
 TEST(HistoryTable, RowsWaitForTheFileAndRestartAppends)
 {
-  const auto dir  = std::filesystem::temp_directory_path() / "shard_history_test";
+  const auto dir  = std::filesystem::temp_directory_path() / ("shard_history_test_" + std::to_string(::getpid()));
   const auto path = (dir / "history.csv").string();
   std::filesystem::create_directories(dir);
   {

@@ -4,6 +4,8 @@
 // block, escaping, and the atomic file writer.
 #include <shard/output/run_summary.h>
 
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -170,7 +172,7 @@ TEST(RunSummary, StreamStateDoesNotMatter)
 
 TEST(RunSummary, FileWriter)
 {
-  const auto path = std::filesystem::temp_directory_path() / "shard_run_summary_test.json";
+  const auto path = std::filesystem::temp_directory_path() / ("shard_run_summary_test_" + std::to_string(::getpid()) + ".json");
   shard::output::write_run_summary_file(example(), path.string());
   std::ifstream     in(path);
   std::stringstream s;
