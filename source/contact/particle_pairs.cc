@@ -6,7 +6,6 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
-#include <unordered_map>
 
 namespace shard::contact
 {
@@ -43,17 +42,22 @@ namespace shard::contact
   void
   ParticlePairs::build(const SearchContext &context)
   {
-    // Carry the offsets of the pairs over to the new candidate list.
-    std::unordered_map<unsigned long long, double> kept;
+    // Carry the offsets of the pairs over to the new candidate list: (key, offset) sorted by key
+    // and searched by bisection (a hash map of them was 4 % of the showcase).
+    std::vector<std::pair<unsigned long long, double>> kept;
     for (std::size_t p = 0; p < offset_.size(); ++p)
       if (offset_[p] >= 0)
-        kept[pair_key(candidates_[p])] = offset_[p];
+        kept.emplace_back(pair_key(candidates_[p]), offset_[p]);
+    std::sort(kept.begin(), kept.end());
     search(context);
     offset_.assign(candidates_.size(), -1.);
     for (std::size_t p = 0; p < candidates_.size() && !kept.empty(); ++p)
       {
-        const auto it = kept.find(pair_key(candidates_[p]));
-        if (it != kept.end())
+        const unsigned long long key = pair_key(candidates_[p]);
+        const auto it = std::lower_bound(kept.begin(), kept.end(), key,
+                                         [](const std::pair<unsigned long long, double> &a,
+                                            const unsigned long long b) { return a.first < b; });
+        if (it != kept.end() && it->first == key)
           offset_[p] = it->second;
       }
   }

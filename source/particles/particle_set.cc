@@ -786,10 +786,22 @@ namespace shard::particles
     {
       std::sort(list.begin(), list.end());
       list.erase(std::unique(list.begin(), list.end()), list.end());
-      std::vector<T> fresh, merged;
+      std::vector<T> fresh;
       std::set_difference(list.begin(), list.end(), known.begin(), known.end(), std::back_inserter(fresh));
-      std::merge(known.begin(), known.end(), fresh.begin(), fresh.end(), std::back_inserter(merged));
-      known.swap(merged);
+      // In place, from the back: only the entries above the smallest new one move, and no second
+      // copy of @p known is built. (It holds every broken bond this rank knows of, 320 000 late
+      // in the showcase, and a step with new bonds merged into a copy grown entry by entry:
+      // 4 % of the run.)
+      std::size_t i = known.size(), j = fresh.size(), k = i + j;
+      known.resize(k);
+      while (j > 0)
+        {
+          --k;
+          if (i > 0 && fresh[j - 1] < known[i - 1])
+            known[k] = known[--i];
+          else
+            known[k] = fresh[--j];
+        }
       return fresh;
     }
   } // namespace
