@@ -36,16 +36,15 @@ namespace shard::test_support
 
   /**
    * Writes @p text to a file in the temporary directory, reads it as a parameter file and
-   * removes the file. The file name is @p name with the process id and a per-process count in
-   * front: ctest runs the tests of one program as concurrent processes, and a shared name let
-   * one test read the scene another was writing (HexForce failed that way in CI).
+   * removes the file. The file name is @p name with the process id in front: ctest runs the
+   * tests of one program as concurrent processes, and a shared name let one test read the scene
+   * another was writing (HexForce failed that way in CI). Within a process the file is gone
+   * before the next call.
    */
   inline base::PrmSource
   scene_source(const std::string &name, const std::string &text)
   {
-    static unsigned int count = 0;
-    const auto          path  = std::filesystem::temp_directory_path() /
-                        (std::to_string(::getpid()) + "_" + std::to_string(count++) + "_" + name);
+    const auto path = std::filesystem::temp_directory_path() / (std::to_string(::getpid()) + "_" + name);
     {
       std::ofstream out(path);
       out << text;
